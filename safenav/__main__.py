@@ -1,0 +1,5 @@
+import sys
+
+from safenav.cli import main
+
+sys.exit(main())

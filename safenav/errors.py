@@ -1,0 +1,75 @@
+"""Exceptions raised by safenav.
+
+Every exception derives from :class:`SafeNavError` *and* from the built-in
+exception a caller would expect, so both ``except SafeNavError`` and
+``except ValueError`` (or ``TypeError``) catch it. Messages name the bad value
+and what was expected.
+
+Safety filters do not raise inside the control loop for a scan they can still
+act on: they brake and say why in :attr:`safenav.filters.FilterResult.status`.
+Exceptions are for structural mistakes (a scan whose fields contradict each
+other, a command of the wrong shape, an unknown preset name).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+__all__ = [
+    "SafeNavError",
+    "InvalidScan",
+    "InvalidScanType",
+    "InvalidCommand",
+    "InvalidCommandType",
+    "InvalidConfig",
+    "UnknownName",
+    "MissingDependency",
+]
+
+
+class SafeNavError(Exception):
+    """Root of every exception raised by safenav."""
+
+
+class InvalidScan(SafeNavError, ValueError):
+    """A laser scan whose fields are missing, inconsistent or out of range."""
+
+
+class InvalidScanType(InvalidScan, TypeError):
+    """A laser-scan field of the wrong type (a string, ``None``, nested lists)."""
+
+
+class InvalidCommand(SafeNavError, ValueError):
+    """A velocity command ``(v, omega)`` of the wrong shape."""
+
+
+class InvalidCommandType(InvalidCommand, TypeError):
+    """A velocity command that is not a pair of real numbers."""
+
+
+class InvalidConfig(SafeNavError, ValueError):
+    """A configuration value (robot spec, filter or simulator setting) out of range."""
+
+
+class UnknownName(SafeNavError, ValueError):
+    """A name (preset, world, policy, filter, solver) that is not registered.
+
+    The message lists the known names.
+    """
+
+    def __init__(self, kind: str, name: object, known: Iterable[str], hint: str = "") -> None:
+        self.kind = kind
+        self.name = name
+        self.known = tuple(sorted(known))
+        message = f"unknown {kind} {name!r}; expected one of: {', '.join(self.known)}"
+        if hint:
+            message += f" ({hint})"
+        super().__init__(message)
+
+
+class MissingDependency(SafeNavError, ImportError):
+    """An optional dependency is not installed; the message gives the pip line."""
+
+    def __init__(self, package: str, purpose: str) -> None:
+        self.package = package
+        super().__init__(f"{purpose} needs the optional package {package!r}: pip install {package}")

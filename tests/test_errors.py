@@ -1,0 +1,32 @@
+import pytest
+
+from safenav import errors
+
+
+@pytest.mark.parametrize(
+    ("exception", "builtins"),
+    [
+        (errors.InvalidScan, (ValueError,)),
+        (errors.InvalidScanType, (ValueError, TypeError)),
+        (errors.InvalidCommand, (ValueError,)),
+        (errors.InvalidCommandType, (ValueError, TypeError)),
+        (errors.InvalidConfig, (ValueError,)),
+        (errors.UnknownName, (ValueError,)),
+        (errors.MissingDependency, (ImportError,)),
+    ],
+)
+def test_every_error_is_a_safenav_error_and_its_builtin(exception, builtins):
+    assert issubclass(exception, errors.SafeNavError)
+    for builtin in builtins:
+        assert issubclass(exception, builtin)
+
+
+def test_unknown_name_lists_the_known_names_sorted():
+    error = errors.UnknownName("robot preset", "turtlebot", ["rosbot", "m2wr"])
+    assert str(error) == "unknown robot preset 'turtlebot'; expected one of: m2wr, rosbot"
+    assert error.known == ("m2wr", "rosbot")
+
+
+def test_missing_dependency_gives_the_pip_line():
+    error = errors.MissingDependency("rosbags", "reading ROS bags")
+    assert "pip install rosbags" in str(error)

@@ -1,0 +1,285 @@
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from safenav import InvalidScan, InvalidScanType, LaserScan, Pose2D, Reading, SectorState, preset
+from safenav.geometry import wrap_angle
+from safenav.synthetic import Scene, synthetic_scan, wall
+
+HALF_PI = 0.5 * math.pi
+
+
+def make_scan(**changes):
+    fields = dict(angle_min=-HALF_PI, angle_max=HALF_PI, angle_increment=math.pi / 4, range_min=0.1,
+                  range_max=10.0, ranges=[1.0, 2.0, 3.0, 4.0, 5.0])
+    fields.update(changes)
+    return LaserScan(**fields)
+
+
+# ------------------------------------------------------------------ the tutorials' directions
+
+@pytest.mark.parametrize(
+    ("name", "front", "left", "right", "behind"),
+    [
+        ("rosbot", 0, 180, 539, 360),       # lidar mounted backwards: beam 0 looks forward, 360 backward
+        ("puzzlebot", 0, 90, 269, 180),     # 0..2pi, counter-clockwise from the front
+        ("m2wr", 360, 719, 0, None),        # 180-degree lidar: nothing behind
+    ],
+)
+def test_preset_direction_indices_match_the_tutorials(name, front, left, right, behind):
+    scan = preset(name).scan()
+    assert scan.beam_index(0.0) == front
+    assert scan.beam_index(HALF_PI) == left
+    assert scan.beam_index(-HALF_PI) == right
+    assert scan.beam_index(math.pi) == behind
+    assert scan.covers(math.pi) is (behind is not None)
+
+
+def test_rosbot_beam_360_looks_backwards():
+    scan = preset("rosbot").scan()
+    assert abs(wrap_angle(scan.base_angles[360] - math.pi)) < scan.angle_increment
+    assert abs(scan.base_angles[0]) < 1e-12
+
+
+conventions = st.fixed_dictionaries({
+    "angle_min": st.floats(-math.pi, 0.0),
+    "fov": st.floats(HALF_PI, 2 * math.pi),
+    "n": st.integers(10, 2000),
+    "mount_yaw": st.floats(-10.0, 10.0),
+})
+
+
+@given(conventions, st.floats(0.0, 1.0))
+def test_direction_to_index_to_direction_within_half_an_increment(convention, fraction):
+    n, fov = convention["n"], convention["fov"]
+    increment = fov / (n - 1)
+    scan = LaserScan(angle_min=convention["angle_min"], angle_max=convention["angle_min"] + fov,
+                     angle_increment=increment, range_min=0.1, range_max=10.0, ranges=np.ones(n),
+                     mount=Pose2D(0.0, 0.0, convention["mount_yaw"]))
+    direction = wrap_angle(convention["mount_yaw"] + convention["angle_min"] + fraction * fov)
+    index = scan.beam_index(direction)
+    assert index is not None
+    assert abs(wrap_angle(scan.base_angles[index] - direction)) <= 0.5 * increment + 1e-9
+
+
+@given(conventions, st.floats(0.0, 1.0))
+def test_directions_outside_the_field_of_view_are_not_covered(convention, fraction):
+    n, fov = convention["n"], convention["fov"]
+    increment = fov / (n - 1)
+    gap = 2 * math.pi - fov - increment  # uncovered arc beyond half an increment either side
+    if gap <= 1e-6:
+        return
+    scan = LaserScan(angle_min=convention["angle_min"], angle_max=convention["angle_min"] + fov,
+                     angle_increment=increment, range_min=0.1, range_max=10.0, ranges=np.ones(n),
+                     mount=Pose2D(0.0, 0.0, convention["mount_yaw"]))
+    start = convention["mount_yaw"] + convention["angle_min"] + fov + 0.5 * increment
+    direction = start + 1e-7 + fraction * (gap - 2e-7)
+    assert scan.beam_index(direction) is None
+    assert scan.coverage(direction - 1e-8, direction + 1e-8) == 0.0
+
+
+# ------------------------------------------------------------------ points
+
+@pytest.mark.parametrize("name", ["rosbot", "puzzlebot", "m2wr"])
+@pytest.mark.parametrize("direction", [0.0, 0.4, -1.2])
+def test_points_of_a_wall_land_on_the_wall(name, direction):
+    robot = preset(name)
+    distance = 1.7
+    scan = synthetic_scan(robot, Scene.of(wall(distance, direction)))
+    points = scan.points()
+    assert len(points) > 50
+    normal = np.array([math.cos(direction), math.sin(direction)])
+    assert np.max(np.abs(points @ normal - distance)) < 1e-9
+
+
+def test_points_in_laser_and_base_frames_differ_by_the_mount():
+    mount = Pose2D(0.15, -0.05, 0.3)
+    scan = make_scan(mount=mount)
+    assert np.allclose(scan.points("base"), mount.to_parent(scan.points("laser")))
+
+
+def test_points_with_an_unknown_frame_name_the_frame():
+    with pytest.raises(InvalidScan, match="frame must be 'base' or 'laser'"):
+        make_scan().points("odom")
+
+
+# ------------------------------------------------------------------ REP-117
+
+@pytest.mark.parametrize(
+    ("value", "reading", "gives_point"),
+    [
+        (2.5, Reading.HIT, True),           # a return at 2.5 m
+        (0.1, Reading.HIT, True),           # exactly range_min is in range
+        (10.0, Reading.HIT, True),          # exactly range_max is in range
+        (math.inf, Reading.NO_RETURN, False),   # nothing within range_max: free
+        (-math.inf, Reading.TOO_CLOSE, True),   # object closer than range_min: point at range_min
+        (math.nan, Reading.INVALID, False),     # invalid measurement
+        (0.05, Reading.INVALID, False),         # below range_min: discarded
+        (12.0, Reading.INVALID, False),         # above range_max: discarded
+        (0.0, Reading.INVALID, False),          # the classic "no reading" zero
+        (-1.0, Reading.INVALID, False),         # negative garbage
+    ],
+)
+def test_rep117_readings(value, reading, gives_point):
+    scan = make_scan(ranges=[value, 1.0, 1.0, 1.0, 1.0])
+    assert scan.readings[0] == reading
+    index, ranges = scan.obstacle_beams()
+    assert (0 in index) is gives_point
+    if reading is Reading.TOO_CLOSE:
+        assert ranges[0] == scan.range_min
+
+
+# ------------------------------------------------------------------ sectors
+
+def test_sector_reads_obstacle_free_and_unknown():
+    robot = preset("m2wr")
+    scan = synthetic_scan(robot, Scene.of(wall(2.0, 0.0, length=1.0)))
+    front = scan.sector(-0.1, 0.1)
+    assert front.state is SectorState.OBSTACLE
+    assert front.min_range == pytest.approx(2.0 - robot.lidar.mount.x, abs=1e-5)
+    assert front.complete
+    left = scan.sector(1.0, 1.5)
+    assert left.state is SectorState.FREE and left.min_range == math.inf
+    behind = scan.sector(3 * math.pi / 4, -3 * math.pi / 4)
+    assert behind.state is SectorState.UNKNOWN and math.isnan(behind.min_range)
+    assert behind.n_beams == 0 and behind.coverage == 0.0
+
+
+def test_sector_with_only_invalid_beams_is_unknown_not_free():
+    robot = preset("puzzlebot")
+    ranges = np.full(360, math.inf)
+    ranges[:20] = math.nan
+    ranges[-20:] = 0.0
+    scan = robot.scan(ranges)
+    front = scan.sector(-math.radians(15), math.radians(15))
+    assert front.state is SectorState.UNKNOWN
+    assert front.n_beams > 0 and front.n_informative == 0
+    assert not front.complete
+
+
+def test_sector_too_close_counts_as_obstacle_at_range_min():
+    ranges = np.full(360, math.inf)
+    ranges[0] = -math.inf
+    scan = preset("puzzlebot").scan(ranges)
+    front = scan.sector(-0.1, 0.1)
+    assert front.state is SectorState.OBSTACLE
+    assert front.min_range == scan.range_min and front.n_too_close == 1
+
+
+def test_sector_wrapping_through_pi_and_partial_coverage():
+    scan = preset("m2wr").scan()
+    assert scan.coverage(0.0, math.pi) == pytest.approx(0.5 + 0.5 * scan.angle_increment / math.pi, abs=1e-9)
+    assert scan.coverage(-math.pi, math.pi) == pytest.approx(scan.field_of_view / (2 * math.pi))
+    rosbot = preset("rosbot").scan()
+    assert rosbot.sector_mask(3 * math.pi / 4, -3 * math.pi / 4).sum() == pytest.approx(180, abs=1)
+    assert rosbot.coverage(3.0, -3.0) == 1.0
+
+
+# ------------------------------------------------------------------ validation
+
+BAD_SCANS = [
+    (dict(ranges=[]), InvalidScan, "ranges is empty"),
+    (dict(ranges=[1.0, 2.0]), InvalidScan, "ranges has 2 values"),
+    (dict(ranges=np.ones(9)), InvalidScan, "ranges has 9 values"),
+    (dict(angle_increment=0.0), InvalidScan, "angle_increment must be > 0"),
+    (dict(angle_increment=-math.pi / 4), InvalidScan, "angle_increment must be > 0"),
+    (dict(angle_min=math.nan), InvalidScan, "angle_min must be finite"),
+    (dict(angle_max=math.inf), InvalidScan, "angle_max must be finite"),
+    (dict(range_min=10.0), InvalidScan, "range_max must be > range_min"),
+    (dict(range_min=5.0, range_max=1.0), InvalidScan, "range_max must be > range_min"),
+    (dict(range_min=-0.1), InvalidScan, "range_min must be >= 0"),
+    (dict(range_max=math.nan), InvalidScan, "range_max must be finite"),
+    (dict(intensities=[1.0, 2.0]), InvalidScan, "intensities has 2 values; expected 0 or 5"),
+    (dict(angle_increment=0.01, angle_max=-HALF_PI + 0.04, ranges=np.ones(1000)), InvalidScan, "ranges has 1000"),
+    (dict(angle_min=0.0, angle_max=10.0, angle_increment=2.5), InvalidScan, "expected at most one turn"),
+    (dict(ranges="1 2 3 4 5"), InvalidScanType, "ranges must be a 1-D sequence of real numbers"),
+    (dict(ranges=None), InvalidScanType, "ranges must be a 1-D sequence"),
+    (dict(ranges=[1.0, None, 1.0, 1.0, 1.0]), InvalidScanType, "ranges must be a 1-D sequence"),
+    (dict(ranges=["1", "2", "3", "4", "5"]), InvalidScanType, "ranges must be a 1-D sequence"),
+    (dict(ranges=[[1.0, 2.0]] * 5), InvalidScanType, "ranges must be 1-D, got an array of shape (5, 2)"),
+    (dict(ranges=[[1.0], [2.0, 3.0]]), InvalidScanType, "ranges must be a 1-D sequence"),
+    (dict(ranges=[True] * 5), InvalidScanType, "dtype bool"),
+    (dict(angle_min="-1.57"), InvalidScanType, "angle_min must be a real number"),
+    (dict(range_max=None), InvalidScanType, "range_max must be a real number"),
+    (dict(angle_increment=True), InvalidScanType, "angle_increment must be a real number"),
+    (dict(intensities="bright"), InvalidScanType, "intensities must be a 1-D sequence"),
+    (dict(mount=(0.0, 0.0)), InvalidScanType, "mount must be a pose"),
+    (dict(mount=(0.0, 0.0, math.nan)), InvalidScan, "mount.yaw must be finite"),
+    (dict(stamp="now"), InvalidScanType, "stamp must be a real number"),
+    (dict(frame_id=3), InvalidScanType, "frame_id must be a string"),
+]
+
+
+@pytest.mark.parametrize(("changes", "exception", "fragment"), BAD_SCANS)
+def test_bad_scans_raise_naming_the_field(changes, exception, fragment):
+    with pytest.raises(exception) as info:
+        make_scan(**changes)
+    assert type(info.value) is exception
+    assert fragment in str(info.value)
+
+
+def test_off_by_one_beam_count_of_some_drivers_is_accepted():
+    scan = make_scan(angle_max=HALF_PI + math.pi / 4, ranges=np.ones(5))
+    assert scan.n_beams == 5
+
+
+def test_ranges_are_copied_and_read_only():
+    source = np.ones(5)
+    scan = make_scan(ranges=source)
+    source[0] = 99.0
+    assert scan.ranges[0] == 1.0
+    with pytest.raises(ValueError):
+        scan.ranges[0] = 2.0
+
+
+def test_single_beam_scan_is_valid():
+    scan = LaserScan(angle_min=0.0, angle_max=0.0, angle_increment=0.01, range_min=0.1, range_max=5.0, ranges=[1.0])
+    assert scan.beam_index(0.0) == 0 and scan.beam_index(1.0) is None
+    assert scan.points().tolist() == [[1.0, 0.0]]
+
+
+# ------------------------------------------------------------------ from_msg
+
+def ros1_like(**changes):
+    header = SimpleNamespace(stamp=SimpleNamespace(secs=12, nsecs=500_000_000), frame_id="laser_frame")
+    fields = dict(header=header, angle_min=-HALF_PI, angle_max=HALF_PI, angle_increment=math.pi / 4,
+                  time_increment=0.001, scan_time=0.1, range_min=0.1, range_max=10.0,
+                  ranges=(1.0, 2.0, math.inf, -math.inf, math.nan), intensities=())
+    fields.update(changes)
+    return SimpleNamespace(**fields)
+
+
+def test_from_msg_reads_every_field_and_the_ros1_stamp():
+    scan = LaserScan.from_msg(ros1_like(), mount=(0.1, 0.0, math.pi))
+    assert scan.stamp == pytest.approx(12.5)
+    assert scan.frame_id == "laser_frame"
+    assert scan.mount == Pose2D(0.1, 0.0, math.pi)
+    assert scan.readings.tolist() == [Reading.HIT, Reading.HIT, Reading.NO_RETURN, Reading.TOO_CLOSE, Reading.INVALID]
+    assert scan.time_increment == 0.001 and scan.scan_time == 0.1
+
+
+def test_from_msg_reads_a_ros2_stamp_and_float32_arrays():
+    import array
+    message = ros1_like(header=SimpleNamespace(stamp=SimpleNamespace(sec=3, nanosec=250_000_000), frame_id="l"),
+                        ranges=array.array("f", [1.0, 2.0, 3.0, 4.0, 5.0]))
+    scan = LaserScan.from_msg(message)
+    assert scan.stamp == pytest.approx(3.25)
+    assert scan.ranges.dtype == np.float64
+
+
+def test_from_msg_names_a_missing_field():
+    message = ros1_like()
+    del message.range_max
+    with pytest.raises(InvalidScan, match="has no field 'range_max'"):
+        LaserScan.from_msg(message)
+
+
+def test_from_msg_accepts_a_message_without_header_or_intensities():
+    message = ros1_like()
+    del message.header, message.intensities
+    scan = LaserScan.from_msg(message, stamp=4.0)
+    assert scan.stamp == 4.0 and scan.intensities.size == 0
