@@ -375,7 +375,7 @@ class LaserScan:
         r = self.ranges
         return (r >= self.range_min) & (r <= self.range_max)
 
-    @property
+    @functools.cached_property
     def n_informative(self) -> int:
         """Number of beams that are not ``INVALID``."""
         return int(np.count_nonzero(self.readings != Reading.INVALID))

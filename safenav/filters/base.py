@@ -38,6 +38,9 @@ class FilterStatus(enum.Enum):
 
     OK = "ok"
     """Every constraint holds for the returned command (``u_nom`` itself when it was already safe)."""
+    RECOVERING = "recovering"
+    """The robot is already inside the margin of some obstacle (a barrier is negative, e.g.
+    after noise or a push); the command satisfies the barrier condition, which moves it back out."""
     SLACK = "slack"
     """The constraints could not all hold (the robot is already too close, or cannot brake in
     time); the command violates them as little as possible, moving away from the obstacles."""

@@ -1,5 +1,89 @@
-"""Reference nominal policies: the three ROS tutorial controllers, go-to-goal and a random walk."""
+"""Reference nominal policies: the three ROS tutorial controllers, go-to-goal and a random walk.
 
-from safenav.reference.base import Policy
+Every policy is a callable ``policy(scan, pose=None) -> Command`` with a :attr:`~Policy.state`
+for logging and a :meth:`~Policy.reset`. Build one by name with :func:`make_policy`:
 
-__all__ = ["Policy"]
+========================  =========================================================
+name                      policy
+========================  =========================================================
+``stop_at_wall``          :class:`StopAtWall`, tutorial 1, front found by angle
+``stop_at_wall_buggy``    :meth:`StopAtWall.tutorial_bug`, tutorial 1 as published (reads beam 360)
+``obstacle_avoidance``    :class:`ObstacleAvoidance`, tutorial 2
+``wall_follower``         :class:`WallFollower`, tutorial 3
+``go_to_goal``            :class:`GoToGoal`, needs ``goal=(x, y)``
+``random_walk``           :class:`RandomWalk`
+========================  =========================================================
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from safenav.errors import InvalidConfig, UnknownName
+from safenav.reference.base import Policy, Proximity, RangeCheck, check_beam, check_sector
+from safenav.reference.go_to_goal import GoToGoal
+from safenav.reference.obstacle_avoidance import ObstacleAvoidance
+from safenav.reference.random_walk import RandomWalk
+from safenav.reference.stop_at_wall import StopAtWall
+from safenav.reference.wall_follower import WallFollower
+from safenav.robot import RobotSpec
+
+__all__ = [
+    "POLICY_NAMES",
+    "GoToGoal",
+    "ObstacleAvoidance",
+    "Policy",
+    "Proximity",
+    "RandomWalk",
+    "RangeCheck",
+    "StopAtWall",
+    "WallFollower",
+    "check_beam",
+    "check_sector",
+    "make_policy",
+]
+
+POLICY_NAMES = (
+    "stop_at_wall",
+    "stop_at_wall_buggy",
+    "obstacle_avoidance",
+    "wall_follower",
+    "go_to_goal",
+    "random_walk",
+)
+"""Names :func:`make_policy` accepts."""
+
+
+def make_policy(name: str, robot: RobotSpec, **kwargs: Any) -> Policy:
+    """A reference policy by name, for ``robot``.
+
+    The tutorial policies clip their commands to the robot's velocity limits (on their own
+    tutorial robot nothing is clipped); :class:`GoToGoal` and :class:`RandomWalk` draw their
+    limits from it.
+
+    Args:
+        name: one of :data:`POLICY_NAMES`.
+        robot: the robot the policy drives.
+        **kwargs: the policy's own arguments (``goal=(x, y)`` for ``"go_to_goal"``,
+            ``seed=`` and ``hold_steps=`` for ``"random_walk"``, ...).
+
+    Raises:
+        UnknownName: ``name`` is not registered (the message lists the names).
+        InvalidConfig: ``robot`` is not a :class:`~safenav.robot.RobotSpec`, or an argument
+            is out of range.
+    """
+    if not isinstance(robot, RobotSpec):
+        raise InvalidConfig(f"make_policy: robot must be a RobotSpec (e.g. safenav.preset('rosbot')), got {robot!r}")
+    if name == "stop_at_wall":
+        return StopAtWall(robot=robot, **kwargs)
+    if name == "stop_at_wall_buggy":
+        return StopAtWall.tutorial_bug(robot=robot, **kwargs)
+    if name == "obstacle_avoidance":
+        return ObstacleAvoidance(robot=robot, **kwargs)
+    if name == "wall_follower":
+        return WallFollower(robot=robot, **kwargs)
+    if name == "go_to_goal":
+        return GoToGoal(robot, **kwargs)
+    if name == "random_walk":
+        return RandomWalk(robot, **kwargs)
+    raise UnknownName("policy", name, POLICY_NAMES)

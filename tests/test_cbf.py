@@ -1,0 +1,377 @@
+"""The CBF-QP safety filter on synthetic scans: properties, geometry, reduction, solvers, failures."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import qpsolvers
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from safenav import InvalidConfig, LidarSpec, Pose2D, UnknownName, preset, unicycle_step
+from safenav.filters import CBFSafetyFilter, FilterStatus, available_solvers
+from safenav.filters.qp import QPOutcome
+from safenav.synthetic import Circle, Scene, box, synthetic_scan, wall
+
+DT = 0.05
+
+
+def lifted(u: np.ndarray, velocity) -> np.ndarray:
+    t = np.abs(u) if velocity is None else np.maximum(np.abs(u), np.abs(velocity))
+    return np.concatenate((u, t))
+
+
+def full_residual(filt: CBFSafetyFilter, u_nom, scan, velocity, u) -> np.ndarray:
+    """Residual of every row of the unreduced QP at command ``u`` (<= 0 means satisfied) [m/s]."""
+    problem = filt.build_qp(u_nom, scan, velocity, reduce=False)
+    return problem.G @ lifted(np.asarray(u, dtype=float), velocity) - problem.h
+
+
+# ------------------------------------------------------------------ strategies
+
+@st.composite
+def lidars(draw, robot):
+    """The robot's own lidar, or a random partial field of view and mount."""
+    if draw(st.booleans()):
+        return robot
+    fov = draw(st.floats(math.pi / 2, 2 * math.pi))
+    n = draw(st.integers(30, 720))
+    angle_min = draw(st.floats(-math.pi, 0.0))
+    mount = Pose2D(draw(st.floats(-0.05, 0.1)), draw(st.floats(-0.05, 0.05)), draw(st.floats(-math.pi, math.pi)))
+    lidar = LidarSpec(n_beams=n, angle_min=angle_min, angle_max=angle_min + fov, range_min=0.05, range_max=8.0,
+                      mount=mount)
+    return robot.replace(lidar=lidar)
+
+
+@st.composite
+def scenes(draw):
+    kind = draw(st.sampled_from(["clutter", "walls", "empty", "corridor"]))
+    if kind == "empty":
+        return Scene()
+    if kind == "corridor":
+        width = draw(st.floats(0.35, 2.0))
+        heading = draw(st.floats(-math.pi, math.pi))
+        return Scene.of(wall(width / 2, heading + math.pi / 2), wall(width / 2, heading - math.pi / 2))
+    if kind == "walls":
+        count = draw(st.integers(1, 4))
+        return Scene.of(*(wall(draw(st.floats(0.12, 3.0)), draw(st.floats(-math.pi, math.pi)))
+                          for _ in range(count)))
+    items = []
+    for _ in range(draw(st.integers(1, 12))):
+        distance = draw(st.floats(0.1, 3.0))
+        bearing = draw(st.floats(-math.pi, math.pi))
+        centre = (distance * math.cos(bearing), distance * math.sin(bearing))
+        if draw(st.booleans()):
+            items.append(Circle(centre, draw(st.floats(0.02, 0.5))))
+        else:
+            items.append(box(centre, (draw(st.floats(0.05, 1.0)), draw(st.floats(0.05, 1.0))),
+                             draw(st.floats(-math.pi, math.pi))))
+    return Scene.of(*items)
+
+
+@st.composite
+def cases(draw):
+    robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
+    robot = draw(lidars(robot))
+    scan = synthetic_scan(robot, draw(scenes()))
+    scale = draw(st.sampled_from([1.0, 1.0, 1.5]))  # sometimes beyond the limits
+    u_nom = np.array([draw(st.floats(robot.v_min * scale, robot.v_max * scale)),
+                      draw(st.floats(-robot.omega_max * scale, robot.omega_max * scale))])
+    velocity = None
+    if draw(st.booleans()):
+        velocity = np.array([draw(st.floats(robot.v_min, robot.v_max)),
+                             draw(st.floats(-robot.omega_max, robot.omega_max))])
+    return robot, scan, u_nom, velocity
+
+
+# ------------------------------------------------------------------ properties
+
+@settings(max_examples=2000)
+@given(cases())
+def test_filter_properties_on_random_scans(case):
+    robot, scan, u_nom, velocity = case
+    filt = CBFSafetyFilter(robot, DT)
+    result = filt.filter(u_nom, scan, velocity=velocity)
+    u = result.u
+    assert np.all(np.isfinite(u))
+    lower, upper = robot.velocity_bounds(velocity, DT if velocity is not None else None)
+    assert np.all(u >= lower - 1e-12) and np.all(u <= upper + 1e-12)
+    assert result.status in (FilterStatus.OK, FilterStatus.RECOVERING, FilterStatus.SLACK)
+    residual = full_residual(filt, u_nom, scan, velocity, u)
+    if result.status is FilterStatus.SLACK:
+        assert residual.max(initial=0.0) <= result.slack / DT + 1e-6
+    else:
+        assert residual.max(initial=0.0) <= 1e-6
+    if velocity is None and result.min_barrier >= 0.0:
+        assert result.status is FilterStatus.OK   # u = 0 is always feasible then
+    nominal_feasible = (np.all(u_nom >= lower) and np.all(u_nom <= upper)
+                        and full_residual(filt, u_nom, scan, velocity, u_nom).max(initial=0.0) <= 0.0)
+    if nominal_feasible:
+        assert np.array_equal(u, u_nom) and result.n_constraints == 0
+
+
+@settings(max_examples=400)
+@given(cases())
+def test_reduction_gives_the_answer_of_the_full_qp(case):
+    """Pruning, binning and constraint generation change the answer by at most 1e-6."""
+    robot, scan, u_nom, velocity = case
+    filt = CBFSafetyFilter(robot, DT)
+    result = filt.filter(u_nom, scan, velocity=velocity)
+    if result.status not in (FilterStatus.OK, FilterStatus.RECOVERING) or not result.modified:
+        return
+    full = filt.build_qp(u_nom, scan, velocity, reduce=False)
+    reference = qpsolvers.solve_problem(full, solver="quadprog")
+    assert reference.found
+    assert np.max(np.abs(reference.x[:2] - result.u)) <= 1e-6
+    assert result.n_constraints <= full.G.shape[0] - 4
+
+
+def test_working_set_and_constraint_generation_match_the_full_qp(monkeypatch):
+    """Force the binned working set (as for scans with thousands of beams) and check exactness."""
+    import safenav.filters.cbf as cbf
+
+    monkeypatch.setattr(cbf, "DIRECT_ROWS", 0)
+    rng = np.random.default_rng(7)
+    robot = preset("rosbot")
+    rounds = 0
+    for _ in range(300):
+        bearings = rng.uniform(-math.pi, math.pi, 8)
+        distances = rng.uniform(0.35, 0.9, 8)
+        items = [Circle((d * math.cos(b), d * math.sin(b)), rng.uniform(0.03, 0.15)) for d, b in zip(distances, bearings)]
+        scene = Scene.of(*items, wall(rng.uniform(0.4, 0.8), rng.uniform(-math.pi, math.pi)))
+        scan = synthetic_scan(robot, scene)
+        filt = CBFSafetyFilter(robot, DT, n_bins=8)
+        u_nom = rng.uniform(robot.lower, robot.upper)
+        result = filt.filter(u_nom, scan)
+        if result.status is not FilterStatus.OK or not result.modified:
+            continue
+        reference = qpsolvers.solve_problem(filt.build_qp(u_nom, scan, reduce=False), solver="quadprog")
+        assert np.max(np.abs(reference.x[:2] - result.u)) <= 1e-6
+        rounds += 1
+    assert rounds > 50
+
+
+# ------------------------------------------------------------------ geometry
+
+def test_wall_ahead_limits_speed_to_the_derived_bound():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    distance = 0.3
+    scan = synthetic_scan(robot, Scene.of(wall(distance)))
+    result = filt.filter((robot.v_max, 0.0), scan)
+    ell, margin = filt.lookahead, filt.margin
+    barrier = distance - ell - (robot.radius + ell + margin)      # nearest wall point, seen from p
+    bound = filt.gamma * barrier / (DT * (1.0 + filt.kappa))      # v dt (1 + kappa) <= gamma h
+    assert barrier > 0
+    assert result.status is FilterStatus.OK
+    assert result.u[0] == pytest.approx(bound, abs=1e-6)
+    assert result.u[0] <= bound + 1e-9
+    assert abs(result.u[1]) <= 1e-6
+    assert result.min_barrier == pytest.approx(barrier, abs=1e-9)
+    assert result.clearance == pytest.approx(distance - robot.radius, abs=1e-9)
+    # The active constraint is the wall point straight ahead.
+    nearest = result.constraint_points[list(result.active)]
+    assert np.any(np.hypot(nearest[:, 0] - distance, nearest[:, 1]) < 1e-9)
+
+
+def test_obstacle_behind_a_180_degree_lidar_does_not_permit_reversing():
+    robot = preset("m2wr")
+    filt = CBFSafetyFilter(robot, DT)
+    scan = synthetic_scan(robot, Scene.of(wall(0.4, math.pi)))   # the wall is invisible: behind the lidar
+    assert np.all(np.isinf(scan.ranges))
+    result = filt.filter((-0.5, 0.3), scan)
+    assert result.u[0] >= -1e-12
+    assert result.u[1] == pytest.approx(0.3)
+    assert filt.filter((0.5, 0.0), scan).u[0] == 0.5
+
+
+def test_robot_between_two_walls_still_drives_along_the_corridor(robot):
+    filt = CBFSafetyFilter(robot, DT)
+    half_width = robot.radius + filt.lookahead + filt.margin + 0.15
+    scan = synthetic_scan(robot, Scene.of(wall(half_width, math.pi / 2), wall(half_width, -math.pi / 2)))
+    result = filt.filter((0.8 * robot.v_max, 0.0), scan)
+    assert result.status is FilterStatus.OK
+    assert np.array_equal(result.u, [0.8 * robot.v_max, 0.0])
+
+
+def test_closed_loop_turning_into_a_wall_keeps_the_margin(robot):
+    """Exact kinematics and exact scans: the guarantee holds to within the beam-spacing error."""
+    filt = CBFSafetyFilter(robot, DT)
+    scene = Scene.of(wall(1.0, math.pi / 2), wall(1.0, -math.pi / 2), wall(4.0, 0.0))
+    pose = Pose2D(0.0, 0.0, 0.0)
+    worst = math.inf
+    modified = 0
+    for _ in range(300):
+        scan = synthetic_scan(robot, scene, pose)
+        result = filt.filter((robot.v_max, 0.2), scan)
+        modified += result.modified
+        pose = unicycle_step(pose, *result.u, DT)
+        worst = min(worst, scene.clearance(pose[:2], robot.radius))
+    assert modified > 20
+    assert worst >= filt.margin - 2e-3
+
+
+def test_unknown_sector_in_front_blocks_forward_motion():
+    robot = preset("puzzlebot")
+    ranges = np.full(360, math.inf)
+    ranges[:15] = math.nan      # beams 0..14 and 345..359: +-15 degrees ahead, no information
+    ranges[-15:] = math.nan
+    filt = CBFSafetyFilter(robot, DT)
+    result = filt.filter((0.3, 0.2), robot.scan(ranges))
+    assert result.u[0] <= 1e-12
+    assert result.u[1] == pytest.approx(0.2)
+    few = np.full(360, math.inf)
+    few[[0, 2, 4]] = math.nan    # isolated dropouts are bridged by their neighbours
+    assert filt.filter((0.3, 0.2), robot.scan(few)).u[0] == 0.3
+
+
+def test_robot_inside_the_margin_moves_back_out():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    scan = synthetic_scan(robot, Scene.of(wall(0.2)))
+    result = filt.filter((0.5, 0.0), scan)
+    assert result.min_barrier < 0
+    assert result.status is FilterStatus.RECOVERING
+    assert result.u[0] < 0.0
+    assert "inside the margin" in result.message
+
+
+def test_moving_too_fast_to_brake_relaxes_with_slack_and_brakes_hard():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    scan = synthetic_scan(robot, Scene.of(wall(0.35)))
+    result = filt.filter((1.0, 0.0), scan, velocity=(1.0, 0.0))
+    assert result.status is FilterStatus.SLACK
+    assert result.slack > 0
+    assert result.u[0] == pytest.approx(1.0 - robot.a_max * DT)   # the hardest braking allowed
+    assert "cannot brake in time" in result.message
+
+
+def test_velocity_given_keeps_the_command_reachable():
+    robot = preset("puzzlebot")
+    filt = CBFSafetyFilter(robot, DT)
+    result = filt.filter((0.4, 2.0), robot.scan(), velocity=(0.0, 0.0))
+    assert result.u == pytest.approx([robot.a_max * DT, robot.alpha_max * DT])
+
+
+def test_all_inf_scan_returns_the_nominal_unchanged(robot):
+    filt = CBFSafetyFilter(robot, DT)
+    result = filt.filter((0.1, -0.2), robot.scan())
+    assert result.status is FilterStatus.OK and not result.modified
+    assert result.clearance == math.inf and result.min_barrier == math.inf
+
+
+def test_centre_barrier_constrains_speed_only():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT, lookahead=0.0)
+    scan = synthetic_scan(robot, Scene.of(Circle((0.5, 0.1), 0.1)))
+    result = filt.filter((1.0, 1.0), scan)
+    assert result.u[1] == pytest.approx(1.0, abs=1e-6)
+    assert result.u[0] < 1.0
+
+
+def test_lookahead_barrier_steers_around_an_offset_obstacle():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    scan = synthetic_scan(robot, Scene.of(Circle((0.45, 0.12), 0.05)))
+    result = filt.filter((1.0, 0.0), scan)
+    assert result.u[1] < -1e-3     # turns right, away from the obstacle on the left
+
+
+# ------------------------------------------------------------------ solvers
+
+SOLVERS = [name for name in ("daqp", "quadprog", "osqp", "qpsolvers:daqp", "qpsolvers:quadprog")
+           if name.split(":")[-1] in available_solvers()]
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_every_solver_gives_the_same_answer(solver):
+    rng = np.random.default_rng(3)
+    robot = preset("rosbot")
+    reference = CBFSafetyFilter(robot, DT, solver="quadprog")
+    filt = CBFSafetyFilter(robot, DT, solver=solver)
+    compared = 0
+    for _ in range(60):
+        items = [Circle(tuple(rng.uniform(-1.2, 1.2, 2)), rng.uniform(0.03, 0.3)) for _ in range(6)]
+        scan = synthetic_scan(robot, Scene.of(*items))
+        u_nom = rng.uniform(robot.lower, robot.upper)
+        velocity = rng.uniform(robot.lower, robot.upper) if rng.random() < 0.5 else None
+        expected = reference.filter(u_nom, scan, velocity=velocity)
+        got = filt.filter(u_nom, scan, velocity=velocity)
+        assert got.status is expected.status
+        assert got.u == pytest.approx(expected.u, abs=2e-6)
+        compared += expected.modified
+    assert compared > 10
+
+
+def test_osqp_keeps_one_workspace():
+    robot = preset("puzzlebot")
+    filt = CBFSafetyFilter(robot, DT, solver="osqp")
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        scan = synthetic_scan(robot, Scene.of(Circle(tuple(rng.uniform(-0.5, 0.5, 2)), 0.1), wall(0.4)))
+        filt.filter((0.4, rng.uniform(-2, 2)), scan)
+    setups = filt.backend.setups
+    assert 1 <= setups <= 3
+    for _ in range(30):
+        scan = synthetic_scan(robot, Scene.of(Circle(tuple(rng.uniform(-0.5, 0.5, 2)), 0.1), wall(0.4)))
+        filt.filter((0.4, rng.uniform(-2, 2)), scan)
+    assert filt.backend.setups == setups   # updated in place, not set up again
+
+
+def test_unknown_solver_lists_the_installed_ones():
+    with pytest.raises(UnknownName, match="unknown QP solver 'gurobi'; expected one of: .*daqp"):
+        CBFSafetyFilter(preset("rosbot"), DT, solver="gurobi")
+
+
+@pytest.mark.parametrize(
+    ("changes", "fragment"),
+    [
+        (dict(gamma=0.0), "gamma must be a number in"),
+        (dict(gamma=1.5), "gamma must be a number in"),
+        (dict(margin=-0.1), "margin must be a number in"),
+        (dict(lookahead=math.nan), "lookahead must be a number in"),
+        (dict(weights=(1.0, -1.0)), "weights must be two positive numbers"),
+        (dict(n_bins=0), "n_bins must be an integer >= 1"),
+        (dict(scan_timeout=0.0), "scan_timeout must be a number in"),
+    ],
+)
+def test_bad_config_is_rejected(changes, fragment):
+    with pytest.raises(InvalidConfig, match=fragment):
+        CBFSafetyFilter(preset("rosbot"), DT, **changes)
+
+
+def test_bad_period_is_rejected():
+    with pytest.raises(InvalidConfig, match="dt must be a finite duration > 0"):
+        CBFSafetyFilter(preset("rosbot"), dt=-0.1)
+
+
+# ------------------------------------------------------------------ failures
+
+class BrokenBackend:
+    """A back-end that fails in a chosen way."""
+
+    name = "broken"
+
+    def __init__(self, answer):
+        self.answer = answer
+
+    def solve(self, problem):
+        x = None if self.answer is None else np.full(problem.P.shape[0], self.answer)
+        return QPOutcome(x, "broken", 0.0)
+
+
+@pytest.mark.parametrize("answer", [None, math.nan, 5.0])
+def test_solver_failure_or_wrong_answer_brakes_and_says_so(answer):
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    filt.backend = BrokenBackend(answer)
+    scan = synthetic_scan(robot, Scene.of(wall(0.5)))
+    result = filt.filter((1.0, 0.0), scan, velocity=(0.6, 0.0))
+    assert result.status is FilterStatus.FALLBACK
+    assert result.braked
+    assert result.u == pytest.approx(robot.brake((0.6, 0.0), DT))
+    assert np.all(np.isfinite(result.u))
+    assert "broken" in result.message or "violates" in result.message
