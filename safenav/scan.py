@@ -377,8 +377,8 @@ class LaserScan:
 
     @functools.cached_property
     def n_informative(self) -> int:
-        """Number of beams that are not ``INVALID``."""
-        return int(np.count_nonzero(self.readings != Reading.INVALID))
+        """Number of beams that are not ``INVALID`` (in range, or ``+-inf``)."""
+        return int(np.count_nonzero(self._hit_mask)) + int(np.count_nonzero(np.isinf(self.ranges)))
 
     def obstacle_ranges(self) -> np.ndarray:
         """Range of every beam as an obstacle distance [m]: ``HIT`` as read, ``TOO_CLOSE`` at

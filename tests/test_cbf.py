@@ -354,6 +354,7 @@ class BrokenBackend:
     """A back-end that fails in a chosen way."""
 
     name = "broken"
+    direct_rows = 512
 
     def __init__(self, answer):
         self.answer = answer
@@ -375,3 +376,30 @@ def test_solver_failure_or_wrong_answer_brakes_and_says_so(answer):
     assert result.u == pytest.approx(robot.brake((0.6, 0.0), DT))
     assert np.all(np.isfinite(result.u))
     assert "broken" in result.message or "violates" in result.message
+
+
+# ------------------------------------------------------------------ real recordings
+
+REAL_COMMANDS = [(1.0, 0.0), (0.3, 1.5), (-0.4, -0.5), (0.0, 3.0)]
+
+
+@pytest.mark.parametrize("name", ["carmen-intel", "carmen-freiburg-079", "carmen-csail", "breezyslam-exp1",
+                                  "breezyslam-exp2", "laser-scan-matcher-bag"])
+def test_every_real_scan_filters_without_error_nan_or_solver_fallback(lidar_data, name):
+    from safenav.datasets import load_recording, recording_files, resample
+
+    recording = load_recording(recording_files(lidar_data)[name])
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    statuses: dict[FilterStatus, int] = {}
+    for index, record in enumerate(recording):
+        scan = record.scan
+        if index % 10 == 0:   # also through the ROSbot's own convention (beam 0 forward, -pi..pi)
+            scan = resample(scan, robot.lidar)
+        for command_index, u_nom in enumerate(REAL_COMMANDS):
+            velocity = (0.5, 0.0) if (index + command_index) % 2 else None
+            result = filt.filter(u_nom, scan, velocity=velocity)
+            assert np.all(np.isfinite(result.u)), (index, u_nom)
+            assert result.status is not FilterStatus.FALLBACK, (index, u_nom, result.message)
+            statuses[result.status] = statuses.get(result.status, 0) + 1
+    assert statuses.get(FilterStatus.OK, 0) > len(recording)   # mostly a normal day

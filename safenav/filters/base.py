@@ -61,11 +61,13 @@ BRAKING_STATUSES = frozenset({FilterStatus.FALLBACK, FilterStatus.NO_DATA, Filte
 
 
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
-    result = np.array(array, dtype=float)
-    if shape is not None:
-        result = result.reshape(shape)
-    result.flags.writeable = False
-    return result
+    """A read-only float copy of ``array`` (arrays already read-only float are kept)."""
+    if isinstance(array, np.ndarray) and not array.flags.writeable and array.dtype == np.float64:
+        result = array
+    else:
+        result = np.array(array, dtype=float)
+        result.flags.writeable = False
+    return result if shape is None or result.shape == shape else result.reshape(shape)
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,7 +112,7 @@ class FilterResult:
         object.__setattr__(self, "u", _frozen(self.u, (2,)))
         object.__setattr__(self, "u_nom", _frozen(self.u_nom, (2,)))
         object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
-        object.__setattr__(self, "active", tuple(int(i) for i in self.active))
+        object.__setattr__(self, "active", tuple(map(int, self.active)))
         if self.plan is not None:
             object.__setattr__(self, "plan", _frozen(self.plan))
 
@@ -207,14 +209,14 @@ class SafetyFilter(abc.ABC):
         if scan_age is not None and not scan_age <= self.scan_timeout:  # also catches NaN
             return self._brake(nominal, current, FilterStatus.STALE,
                                f"scan is {scan_age:.3f} s old; timeout {self.scan_timeout:.3f} s", start)
-        if not np.all(np.isfinite(nominal)):
+        if not (math.isfinite(nominal[0]) and math.isfinite(nominal[1])):
             return self._brake(nominal, current, FilterStatus.BAD_INPUT,
                                f"u_nom is not finite: {nominal.tolist()}", start)
         if scan.n_informative == 0:
             return self._brake(nominal, current, FilterStatus.NO_DATA,
                                f"none of the {scan.n_beams} beams is informative (all NaN or out of range)", start)
         result = self._filter(nominal, scan, current)
-        if not np.all(np.isfinite(result.u)):
+        if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
             return self._brake(nominal, current, FilterStatus.FALLBACK,
                                f"filter produced a non-finite command {result.u.tolist()}", start)
         object.__setattr__(result, "filter_time", time.perf_counter() - start)

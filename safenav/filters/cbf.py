@@ -12,7 +12,7 @@ import qpsolvers
 
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
-from safenav.filters.qp import QPBackend, make_backend
+from safenav.filters.qp import QPBackend, QPData, make_backend
 from safenav.filters.reduction import BlockedMotion, blocked_motion, nearest_per_bin
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
@@ -27,7 +27,9 @@ AUX_REGULARISATION = 1e-9
 #: Linear cost on the slack variable [s/m] (with slack_weight: an exact penalty in practice).
 SLACK_LINEAR_WEIGHT = 1e3
 MAX_GENERATION_ROUNDS = 8
-#: Up to this many candidate rows, the QP takes them all at once (one solve, no generation rounds).
+"""Rounds of constraint generation before the QP takes every candidate row."""
+#: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
+#: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
 
 
@@ -103,6 +105,7 @@ class _Constraints(NamedTuple):
 
 #: |v| <= t_v and |omega| <= t_omega as rows over z = (v, omega, t_v, t_omega).
 _ABS_ROWS = np.array([[1.0, 0.0, -1.0, 0.0], [-1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
+_ABS_RHS = np.zeros(4)
 
 
 class CBFSafetyFilter(SafetyFilter):
@@ -286,9 +289,9 @@ class CBFSafetyFilter(SafetyFilter):
         return np.concatenate((u, t))
 
     def _problem(self, u_nom: np.ndarray, G: np.ndarray, rhs: np.ndarray, constraints: _Constraints,
-                 slack: bool = False) -> qpsolvers.Problem:
+                 slack: bool = False) -> QPData:
         P = self._P
-        q = -P[:, :2] @ u_nom
+        q = np.concatenate((-P[:2, :2] @ u_nom, (0.0, 0.0)))
         lower, upper = constraints.lower, constraints.upper
         abs_rows = _ABS_ROWS
         if slack:
@@ -297,8 +300,7 @@ class CBFSafetyFilter(SafetyFilter):
             G = np.column_stack((G, -np.ones(len(G))))
             abs_rows = np.column_stack((abs_rows, np.zeros(4)))
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)
-        return qpsolvers.Problem(P, q, np.vstack((abs_rows, G)), np.concatenate((np.zeros(4), rhs)),
-                                 lb=lower, ub=upper)
+        return QPData(P, q, np.vstack((abs_rows, G)), np.concatenate((_ABS_RHS, rhs)), lower, upper)
 
     def _prune(self, constraints: _Constraints) -> np.ndarray:
         """Mask of the rows that some reachable command could make active (the others never are)."""
@@ -317,7 +319,7 @@ class CBFSafetyFilter(SafetyFilter):
         u_nom = np.asarray(u_nom, dtype=float)
         constraints = self._constraints(scan, None if velocity is None else np.asarray(velocity, dtype=float))
         keep = self._prune(constraints) if reduce else np.ones(len(constraints.rhs), dtype=bool)
-        return self._problem(u_nom, constraints.G[keep], constraints.rhs[keep], constraints)
+        return self._problem(u_nom, constraints.G[keep], constraints.rhs[keep], constraints).problem()
 
     # ------------------------------------------------------------------ filtering
 
@@ -335,9 +337,15 @@ class CBFSafetyFilter(SafetyFilter):
                 and (G @ self._lifted(u_nom, constraints) <= rhs).all()):
             return FilterResult(u=u_nom, u_nom=u_nom, status=FilterStatus.OK, **details)
 
-        candidate = np.flatnonzero(self._prune(constraints))
-        cand_G, cand_rhs, cand_point = G[candidate], rhs[candidate], constraints.point[candidate]
-        if candidate.size <= DIRECT_ROWS:
+        direct_rows = min(self.backend.direct_rows, DIRECT_ROWS)
+        if len(rhs) <= direct_rows:
+            # Few enough rows for one solve: skip the pruning (it would not pay for itself).
+            candidate = np.arange(len(rhs))
+            cand_G, cand_rhs, cand_point = G, rhs, constraints.point
+        else:
+            candidate = np.flatnonzero(self._prune(constraints))
+            cand_G, cand_rhs, cand_point = G[candidate], rhs[candidate], constraints.point[candidate]
+        if candidate.size <= direct_rows:
             working = np.ones(candidate.size, dtype=bool)
         else:
             # Initial working set: every field-of-view row and the tightest row per angular bin around p.
@@ -346,37 +354,20 @@ class CBFSafetyFilter(SafetyFilter):
                                      self.config.n_bins)
             working = cand_point < 0
             working[point_rows[chosen]] = True
-        solve_time = 0.0
-        z = None
-        for _ in range(MAX_GENERATION_ROUNDS):
-            outcome = self.backend.solve(self._problem(u_nom, cand_G[working], cand_rhs[working], constraints))
-            solve_time += outcome.solve_time
-            z = outcome.x
-            if z is None:
-                break
-            violated = cand_G @ z > cand_rhs + 0.1 * VERIFY_TOLERANCE
-            violated &= ~working
-            if not violated.any():
-                break
-            working |= violated
-        else:
-            working[:] = True
-            outcome = self.backend.solve(self._problem(u_nom, cand_G, cand_rhs, constraints))
-            solve_time += outcome.solve_time
-            z = outcome.x
-
+        initial = working.copy()
+        z, working, solve_time, _ = self._solve_generating(u_nom, cand_G, cand_rhs, working, constraints)
         slack = 0.0
         status = FilterStatus.OK
         message = ""
         if z is None:
             # No command satisfies every row: relax them all by one heavily penalised slack.
-            working[:] = True
-            outcome = self.backend.solve(self._problem(u_nom, cand_G, cand_rhs, constraints, slack=True))
-            solve_time += outcome.solve_time
-            if outcome.x is None:
+            z, working, more_time, solver_status = self._solve_generating(u_nom, cand_G, cand_rhs, initial,
+                                                                           constraints, slack=True)
+            solve_time += more_time
+            if z is None:
                 return self._fallback(u_nom, constraints, f"QP solver {self.backend.name} failed "
-                                      f"({outcome.status}) even with slack", solve_time, details)
-            z, slack = outcome.x[:4], max(float(outcome.x[4]), 0.0)
+                                      f"({solver_status}) even with slack", solve_time, details)
+            z, slack = z[:4], max(float(z[4]), 0.0)
             if slack > VERIFY_TOLERANCE:
                 status = FilterStatus.SLACK
                 message = self._slack_reason(constraints, min_barrier, slack * self.dt)
@@ -389,7 +380,7 @@ class CBFSafetyFilter(SafetyFilter):
         if not np.all(residual <= VERIFY_TOLERANCE):
             worst = int(np.argmax(residual))
             return self._fallback(u_nom, constraints, f"QP answer from {self.backend.name} violates row {worst} "
-                                  f"by {residual[worst]:.3g} m", solve_time, details)
+                                  f"by {residual[worst]:.3g} m/s", solve_time, details)
         rows_used = candidate[working]
         row_points = constraints.point[rows_used]
         used = np.zeros(len(points) + 1, dtype=bool)  # the extra slot absorbs field-of-view rows (-1)
@@ -403,6 +394,32 @@ class CBFSafetyFilter(SafetyFilter):
             slack=slack * self.dt if status is FilterStatus.SLACK else 0.0, solver=self.backend.name,
             solve_time=solve_time, **details,
         )
+
+    def _solve_generating(self, u_nom: np.ndarray, G: np.ndarray, rhs: np.ndarray, working: np.ndarray,
+                          constraints: _Constraints, slack: bool = False
+                          ) -> tuple[np.ndarray | None, np.ndarray, float, str]:
+        """Solve over the rows in ``working``, adding violated rows until none is (constraint generation).
+
+        Returns the solution (``None`` on failure), the final working set, the solve time [s]
+        and the solver's last status word. The answer equals that of the QP with all rows.
+        """
+        working = working.copy()
+        solve_time = 0.0
+        outcome = None
+        for round_index in range(MAX_GENERATION_ROUNDS + 1):
+            if round_index == MAX_GENERATION_ROUNDS:
+                working[:] = True
+            outcome = self.backend.solve(self._problem(u_nom, G[working], rhs[working], constraints, slack=slack))
+            solve_time += outcome.solve_time
+            z = outcome.x
+            if z is None:
+                return None, working, solve_time, outcome.status
+            lhs = G @ z[:4] - (z[4] if slack else 0.0)
+            violated = (lhs > rhs + 0.1 * VERIFY_TOLERANCE) & ~working
+            if not violated.any():
+                return z, working, solve_time, outcome.status
+            working |= violated
+        return None, working, solve_time, "constraint generation did not settle"
 
     def _slack_reason(self, constraints: _Constraints, min_barrier: float, slack: float) -> str:
         """Why no command satisfied every row; ``slack`` is the relaxation per period [m]."""

@@ -1,15 +1,16 @@
 """QP back-ends for the filters: any qpsolvers solver by name, and OSQP with a persistent workspace.
 
-Every back-end takes a :class:`qpsolvers.Problem` (``min 1/2 x'Px + q'x`` s.t.
-``Gx <= h``, ``lb <= x <= ub``) and returns the solution vector or ``None``. The
-caller checks the answer against the constraints itself: qpsolvers returns
-``None`` on failure, and OSQP can report "solved" at low accuracy.
+Every back-end takes a :class:`QPData` (``min 1/2 x'Px + q'x`` s.t. ``Gx <= h``,
+``lb <= x <= ub``, the same QP as :meth:`QPData.problem`'s :class:`qpsolvers.Problem`)
+and returns the solution vector or ``None``. The caller checks the answer against
+the constraints itself: qpsolvers returns ``None`` on failure, and OSQP can report
+"solved" at low accuracy.
 """
 
 from __future__ import annotations
 
 import time
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import qpsolvers
@@ -17,14 +18,14 @@ import scipy.sparse as sp
 
 from safenav.errors import UnknownName
 
-__all__ = ["QPOutcome", "QPBackend", "QpsolversBackend", "DirectDAQP", "PersistentOSQP", "make_backend",
+__all__ = ["QPData", "QPOutcome", "QPBackend", "QpsolversBackend", "DirectDAQP", "PersistentOSQP", "make_backend",
            "available_solvers"]
 
 #: Solver options that make answers feasible to well below the filters' verification tolerance.
 TIGHT_OPTIONS: dict[str, dict[str, float]] = {"daqp": {"primal_tol": 1e-10}, "proxqp": {"eps_abs": 1e-10}}
 
 #: Row count a persistent OSQP workspace starts with; it grows (set-up again) when exceeded.
-OSQP_INITIAL_CAPACITY = 128
+OSQP_INITIAL_CAPACITY = 64
 
 
 class QPOutcome(NamedTuple):
@@ -38,13 +39,35 @@ class QPOutcome(NamedTuple):
     """Wall time of the solve [s]."""
 
 
+class QPData(NamedTuple):
+    """A QP ``min 1/2 x'Px + q'x`` s.t. ``Gx <= h``, ``lb <= x <= ub`` as plain arrays.
+
+    The filters hand this to their back-end on every call; :meth:`problem` turns it into
+    the equivalent :class:`qpsolvers.Problem` for inspection or for qpsolvers back-ends.
+    """
+
+    P: np.ndarray
+    q: np.ndarray
+    G: np.ndarray
+    h: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+
+    def problem(self) -> qpsolvers.Problem:
+        """The same QP as a :class:`qpsolvers.Problem`."""
+        return qpsolvers.Problem(self.P, self.q, self.G, self.h, lb=self.lb, ub=self.ub)
+
+
 class QPBackend(Protocol):
     """A QP solver the filters can call repeatedly."""
 
     name: str
+    direct_rows: int
+    """Up to this many rows the filters pass every candidate row at once; above it they use
+    a working set with constraint generation (first-order solvers prefer small QPs)."""
 
-    def solve(self, problem: qpsolvers.Problem) -> QPOutcome:
-        """Solve ``problem``; ``x`` is ``None`` when the solver reports failure."""
+    def solve(self, qp: QPData) -> QPOutcome:
+        """Solve ``qp``; ``x`` is ``None`` when the solver reports failure."""
 
 
 def available_solvers() -> list[str]:
@@ -60,14 +83,16 @@ class QpsolversBackend:
         options: keyword options passed to the solver.
     """
 
+    direct_rows = 512
+
     def __init__(self, name: str, **options: float | int | bool) -> None:
         self.name = name
         self.options = options
 
-    def solve(self, problem: qpsolvers.Problem) -> QPOutcome:
+    def solve(self, qp: QPData) -> QPOutcome:
         start = time.perf_counter()
         try:
-            solution = qpsolvers.solve_problem(problem, solver=self.name, **self.options)
+            solution = qpsolvers.solve_problem(qp.problem(), solver=self.name, **self.options)
         except (ValueError, ArithmeticError, qpsolvers.SolverError) as error:  # a back-end that raises on bad input
             return QPOutcome(None, f"error: {error}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
@@ -82,30 +107,35 @@ class PersistentOSQP:
     The constraint matrix ``[I; G]`` is stored with a fixed dense sparsity pattern
     (explicit zeros included) of ``capacity`` rows for ``G``, so every call is an
     ``update(q, l, u, Px, Ax)`` followed by a warm-started solve. Unused rows are
-    left unbounded. A problem with more rows, or a different number of variables,
-    sets the workspace up again with a larger capacity.
+    left unbounded. One workspace is kept per number of variables (the filters' QPs
+    with and without slack); a problem with more rows than the capacity sets that
+    workspace up again with twice the capacity.
+
+    The filters' QPs have many nearly parallel rows (the points of a wall), on which
+    ADMM needs hundreds to thousands of iterations to reach the accuracy the filters
+    verify (1e-6): OSQP gives the same answers as the active-set solvers but is one to
+    two orders of magnitude slower (see BENCHMARKS.md), so the filters hand it a small
+    working set and generate constraints (:attr:`direct_rows` = 0).
 
     Args:
-        eps: absolute and relative tolerance [problem units]; tight, because the caller
-            verifies the answer to 1e-7.
+        eps: absolute and relative tolerance [problem units].
         max_iter: iteration limit per solve.
     """
 
     name = "osqp"
+    direct_rows = 0
 
-    def __init__(self, eps: float = 1e-9, max_iter: int = 20000) -> None:
+    def __init__(self, eps: float = 1e-9, max_iter: int = 10000) -> None:
         import osqp  # imported here: only this back-end needs it
 
         self._osqp = osqp
         self.settings = dict(eps_abs=eps, eps_rel=eps, polishing=True, verbose=False, max_iter=max_iter,
-                             warm_starting=True)
-        self._solver = None
-        self._n_vars = -1
-        self._capacity = 0
+                             warm_starting=True, polish_refine_iter=5)
+        self._workspaces: dict[int, tuple[Any, int]] = {}
         self.setups = 0
-        """How many times a workspace was set up (1 unless the problem outgrew it)."""
+        """How many workspaces were set up (one per problem size, plus one per growth)."""
 
-    def _setup(self, n_vars: int, capacity: int) -> None:
+    def _setup(self, n_vars: int, capacity: int) -> Any:
         rows = n_vars + capacity
         # Column j holds the identity entry (row j) then all capacity rows of G: a dense pattern.
         indices = np.concatenate([np.concatenate(([j], np.arange(n_vars, rows))) for j in range(n_vars)])
@@ -113,37 +143,37 @@ class PersistentOSQP:
         data = np.zeros(indices.size)
         data[indptr[:-1]] = 1.0
         matrix = sp.csc_matrix((data, indices, indptr), shape=(rows, n_vars))
-        self._solver = self._osqp.OSQP()
-        self._solver.setup(P=sp.eye(n_vars, format="csc"), q=np.zeros(n_vars), A=matrix,
-                           l=np.full(rows, -np.inf), u=np.full(rows, np.inf), **self.settings)
-        self._n_vars, self._capacity = n_vars, capacity
+        solver = self._osqp.OSQP()
+        solver.setup(P=sp.eye(n_vars, format="csc"), q=np.zeros(n_vars), A=matrix,
+                     l=np.full(rows, -np.inf), u=np.full(rows, np.inf), **self.settings)
+        self._workspaces[n_vars] = (solver, capacity)
         self.setups += 1
+        return solver
 
-    def solve(self, problem: qpsolvers.Problem) -> QPOutcome:
+    def solve(self, qp: QPData) -> QPOutcome:
         start = time.perf_counter()
-        P = problem.P.toarray() if sp.issparse(problem.P) else np.asarray(problem.P)
+        P = qp.P
         if np.count_nonzero(P - np.diag(np.diag(P))):
             raise ValueError("PersistentOSQP handles diagonal cost matrices only")
         n_vars = P.shape[0]
-        G = np.zeros((0, n_vars)) if problem.G is None else np.asarray(problem.G, dtype=float)
-        h = np.zeros(0) if problem.h is None else np.asarray(problem.h, dtype=float)
+        G, h = qp.G, qp.h
         m = G.shape[0]
-        if self._solver is None or n_vars != self._n_vars or m > self._capacity:
-            capacity = max(OSQP_INITIAL_CAPACITY, self._capacity)
+        solver, capacity = self._workspaces.get(n_vars, (None, 0))
+        if solver is None or m > capacity:
+            capacity = max(OSQP_INITIAL_CAPACITY, capacity)
             while capacity < m:
                 capacity *= 2
-            self._setup(n_vars, capacity)
-        capacity = self._capacity
+            solver = self._setup(n_vars, capacity)
         block = np.zeros((capacity, n_vars))
         block[:m] = G
         Ax = np.column_stack((np.ones(n_vars), block.T)).ravel()
         lower = np.full(n_vars + capacity, -np.inf)
         upper = np.full(n_vars + capacity, np.inf)
-        lower[:n_vars] = -np.inf if problem.lb is None else problem.lb
-        upper[:n_vars] = np.inf if problem.ub is None else problem.ub
+        lower[:n_vars] = qp.lb
+        upper[:n_vars] = qp.ub
         upper[n_vars:n_vars + m] = h
-        self._solver.update(q=np.asarray(problem.q, dtype=float), l=lower, u=upper, Px=np.diag(P).copy(), Ax=Ax)
-        result = self._solver.solve(raise_error=False)
+        solver.update(q=qp.q, l=lower, u=upper, Px=np.diag(P).copy(), Ax=Ax)
+        result = solver.solve(raise_error=False)
         elapsed = time.perf_counter() - start
         status = str(result.info.status)
         x = np.asarray(result.x, dtype=float)
@@ -163,6 +193,7 @@ class DirectDAQP:
     """
 
     name = "daqp"
+    direct_rows = 512
 
     def __init__(self, primal_tol: float = 1e-10) -> None:
         import daqp  # imported here: only this back-end needs it
@@ -170,25 +201,19 @@ class DirectDAQP:
         self._solve = daqp.solve
         self.primal_tol = primal_tol
 
-    def solve(self, problem: qpsolvers.Problem) -> QPOutcome:
+    def solve(self, qp: QPData) -> QPOutcome:
         start = time.perf_counter()
-        n = problem.P.shape[0]
-        G = np.zeros((0, n)) if problem.G is None else problem.G
-        upper = np.concatenate((np.full(n, np.inf) if problem.ub is None else problem.ub,
-                                np.zeros(0) if problem.h is None else problem.h))
-        lower = np.concatenate((np.full(n, -np.inf) if problem.lb is None else problem.lb,
-                                np.full(G.shape[0], -1e30)))
-        np.clip(upper, -1e30, 1e30, out=upper)
-        np.clip(lower, -1e30, 1e30, out=lower)
-        sense = np.zeros(upper.size, dtype=np.int32)
-        x, _, exitflag, _ = self._solve(np.asarray(problem.P, dtype=float), np.asarray(problem.q, dtype=float),
-                                        np.ascontiguousarray(G, dtype=float), upper, lower, sense,
+        n_rows = qp.G.shape[0]
+        # Simple bounds first, then the rows (DAQP's convention); +-1e30 stands for infinity.
+        upper = np.minimum(np.concatenate((qp.ub, qp.h)), 1e30)
+        lower = np.concatenate((np.maximum(qp.lb, -1e30), np.full(n_rows, -1e30)))
+        x, _, exitflag, _ = self._solve(qp.P, qp.q, qp.G, upper, lower, np.zeros(upper.size, dtype=np.int32),
                                         primal_tol=self.primal_tol)
         elapsed = time.perf_counter() - start
         # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
-        if exitflag not in (1, 2) or not np.all(np.isfinite(x)):
+        if exitflag not in (1, 2) or not np.isfinite(x).all():
             return QPOutcome(None, f"exitflag {exitflag}", elapsed)
-        return QPOutcome(np.asarray(x, dtype=float), "optimal", elapsed)
+        return QPOutcome(x, "optimal", elapsed)
 
 
 def make_backend(name: str) -> QPBackend:

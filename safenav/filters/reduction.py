@@ -107,11 +107,25 @@ def blocked_motion(scan: LaserScan, max_gap: float, side_tolerance: float) -> Bl
         max_gap: widest run of invalid beams still bridged by its neighbours [rad].
         side_tolerance: directions this close to exactly sideways are ignored [rad].
     """
-    arcs = unknown_arcs(scan, max_gap)
+    if scan.n_informative == scan.n_beams:  # only the field of view matters: same answer for the layout
+        return _blocked_by_layout(scan.mount.yaw + scan.angle_min, scan.angle_increment, scan.n_beams, max_gap,
+                                  side_tolerance)
+    return _blocked(unknown_arcs(scan, max_gap), side_tolerance)
+
+
+def _blocked(arcs: tuple[tuple[float, float], ...], side_tolerance: float) -> BlockedMotion:
     half = 0.5 * math.pi - side_tolerance
     forward = any(_arc_meets_cone(start, width, 0.0, half) for start, width in arcs)
     backward = any(_arc_meets_cone(start, width, math.pi, half) for start, width in arcs)
     return BlockedMotion(forward, backward, arcs)
+
+
+@functools.lru_cache(maxsize=64)
+def _blocked_by_layout(first_direction: float, angle_increment: float, n_beams: int, max_gap: float,
+                       side_tolerance: float) -> BlockedMotion:
+    gap = _fov_gap(first_direction, angle_increment, n_beams)
+    arcs = ((first_direction + (n_beams - 0.5) * angle_increment, gap),) if gap > max_gap else ()
+    return _blocked(arcs, side_tolerance)
 
 
 def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int) -> np.ndarray:

@@ -1,0 +1,196 @@
+"""Filter latency: end-to-end time from a 720-beam LaserScan to the filtered command.
+
+For every QP back-end of the CBF filter (and the MPC filter when asked), on the
+same cluttered scenes: the time of ``filter(u_nom, scan)`` (median and p99 over all
+calls, and over the calls that needed a QP), and the QP solve alone. In the same
+run, the straightforward way as a baseline: every one of the 720 points as a
+constraint, ``qpsolvers.solve_qp(..., solver="osqp")`` set up on every call.
+Optionally the same on every scan of the real recordings in ``shared/data/lidar``.
+
+Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import qpsolvers
+
+from benchmarks.common import markdown_table, summary, write_json
+from safenav.filters import CBFSafetyFilter, FilterStatus, SafetyFilter, available_solvers
+from safenav.geometry import Pose2D
+from safenav.robot import RobotSpec, preset
+from safenav.scan import LaserScan
+from safenav.synthetic import synthetic_scan
+from safenav.worlds import random_world
+
+DT = 0.05
+
+
+def cluttered_cases(robot: RobotSpec, n_scenes: int, per_scene: int, seed: int
+                    ) -> list[tuple[LaserScan, np.ndarray]]:
+    """Scans from random 30-obstacle worlds, taken near obstacles, each with random nominal commands."""
+    rng = np.random.default_rng(seed)
+    cases = []
+    for scene_index in range(n_scenes):
+        world = random_world(seed * 100_003 + scene_index, robot, n_obstacles=30)
+        scene = world.scene()
+        xmin, ymin, xmax, ymax = world.bounds
+        for _ in range(1000):
+            pose = Pose2D(rng.uniform(xmin, xmax), rng.uniform(ymin, ymax), rng.uniform(-math.pi, math.pi))
+            if 0.02 <= world.clearance(pose, robot.radius) <= 0.6:
+                break
+        scan = synthetic_scan(robot, scene, pose)
+        for _ in range(per_scene):
+            cases.append((scan, rng.uniform(robot.lower, robot.upper)))
+    return cases
+
+
+def straightforward_cbf(filt: CBFSafetyFilter) -> Callable[[np.ndarray, LaserScan], np.ndarray | None]:
+    """The baseline: every point of the scan a row, OSQP set up on every call through qpsolvers."""
+    robot, dt, ell = filt.robot, filt.dt, filt.lookahead
+    weights = np.diag([1.0 / robot.v_max**2, 1.0 / robot.omega_max**2])
+
+    def solve(u_nom: np.ndarray, scan: LaserScan) -> np.ndarray | None:
+        points = scan.points()
+        d = np.array([ell, 0.0]) - points
+        distance = np.hypot(d[:, 0], d[:, 1])
+        n = d / distance[:, None]
+        barrier = distance - (robot.radius + ell + filt.margin)
+        G = -dt * np.column_stack((n[:, 0], ell * n[:, 1]))
+        h = filt.gamma * barrier
+        return qpsolvers.solve_qp(weights, -weights @ u_nom, G, h, lb=robot.lower, ub=robot.upper,
+                                  solver="osqp", verbose=False)
+
+    return solve
+
+
+def time_filter(filt: SafetyFilter, cases: Sequence[tuple[LaserScan, np.ndarray]], repeat: int = 1
+                ) -> dict[str, Any]:
+    """End-to-end and solver-only timings of ``filt`` over ``cases`` (each ``repeat`` times)."""
+    total, qp_total, solve = [], [], []
+    statuses: dict[str, int] = {}
+    for _ in range(repeat):
+        for scan, u_nom in cases:
+            start = time.perf_counter()
+            result = filt.filter(u_nom, scan)
+            elapsed = time.perf_counter() - start
+            total.append(elapsed)
+            if result.solver:
+                qp_total.append(elapsed)
+                solve.append(result.solve_time)
+            statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+    return {"end_to_end": summary(total), "qp_calls": summary(qp_total), "solve": summary(solve),
+            "qp_fraction": len(qp_total) / max(len(total), 1), "statuses": statuses}
+
+
+def time_baseline(solve: Callable[[np.ndarray, LaserScan], Any], cases: Sequence[tuple[LaserScan, np.ndarray]]
+                  ) -> dict[str, Any]:
+    samples = []
+    for scan, u_nom in cases:
+        start = time.perf_counter()
+        solve(u_nom, scan)
+        samples.append(time.perf_counter() - start)
+    return {"end_to_end": summary(samples)}
+
+
+def real_recordings(robot: RobotSpec, solver: str, per_scan: int, seed: int) -> list[dict[str, Any]]:
+    """End-to-end timing of the CBF filter on every scan of the real recordings."""
+    from safenav.datasets import lidar_data_dir, load_recording, recording_files
+
+    folder = lidar_data_dir()
+    if folder is None:
+        print("real recordings not found (set SAFENAV_LIDAR_DATA); skipped")
+        return []
+    rng = np.random.default_rng(seed)
+    rows = []
+    for name, path in recording_files(folder).items():
+        records = load_recording(path)
+        cases = [(record.scan, rng.uniform(robot.lower, robot.upper)) for record in records for _ in range(per_scan)]
+        result = time_filter(CBFSafetyFilter(robot, DT, solver=solver), cases)
+        beams = records[0].scan.n_beams
+        rows.append({"recording": name, "scans": len(records), "beams": beams, **result})
+    return rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="filter_latency", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--robot", default="rosbot", help="robot preset (default: rosbot, 720 beams)")
+    parser.add_argument("--scenes", type=int, default=250, help="random cluttered scenes (default: 250)")
+    parser.add_argument("--per-scene", type=int, default=20, help="nominal commands per scene (default: 20)")
+    parser.add_argument("--solvers", default=",".join(s for s in ("daqp", "qpsolvers:daqp", "quadprog", "osqp")
+                                                      if s.split(":")[-1] in available_solvers()),
+                        help="comma-separated CBF back-ends (default: all fast ones installed)")
+    parser.add_argument("--baseline-calls", type=int, default=1000,
+                        help="calls of the straightforward baseline (default: 1000)")
+    parser.add_argument("--mpc", action="store_true", help="also time the MPC filter (on --mpc-calls calls)")
+    parser.add_argument("--mpc-calls", type=int, default=1000, help="MPC calls (default: 1000)")
+    parser.add_argument("--real", action="store_true", help="also run on every real recorded scan")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
+    args = parser.parse_args(argv)
+
+    robot = preset(args.robot)
+    cases = cluttered_cases(robot, args.scenes, args.per_scene, args.seed)
+    points = [len(scan.points()) for scan, _ in cases[:: args.per_scene]]
+    print(f"{len(cases)} calls on {args.scenes} cluttered scenes, {robot.lidar.n_beams} beams "
+          f"({int(np.median(points))} obstacle points median), robot {robot.name}, dt {DT} s")
+    results: dict[str, Any] = {"config": vars(args), "cbf": {}}
+    for solver in args.solvers.split(","):
+        filt = CBFSafetyFilter(robot, DT, solver=solver)
+        time_filter(filt, cases[:200])  # warm-up
+        results["cbf"][solver] = time_filter(filt, cases)
+    baseline_cases = cases[: args.baseline_calls]
+    results["baseline"] = time_baseline(straightforward_cbf(CBFSafetyFilter(robot, DT)), baseline_cases)
+    base = results["baseline"]["end_to_end"]["median_us"]
+
+    rows = []
+    for solver, result in results["cbf"].items():
+        e2e, qp, solve = result["end_to_end"], result["qp_calls"], result["solve"]
+        rows.append([f"cbf/{solver}", e2e["median_us"], e2e["p99_us"], qp["median_us"], qp["p99_us"],
+                     solve["median_us"], solve["p99_us"], f"{100 * result['qp_fraction']:.0f}%",
+                     f"{base / e2e['median_us']:.1f}x"])
+    rows.append(["straightforward: 720 rows, qpsolvers osqp", base, results["baseline"]["end_to_end"]["p99_us"],
+                 base, results["baseline"]["end_to_end"]["p99_us"], float("nan"), float("nan"), "100%", "1.0x"])
+
+    if args.mpc:
+        from safenav.filters.mpc import MPCSafetyFilter
+
+        mpc = MPCSafetyFilter(robot, DT)
+        mpc_cases = cases[: args.mpc_calls]
+        time_filter(mpc, mpc_cases[:50])
+        mpc.reset()
+        result = time_filter(mpc, mpc_cases)
+        results["mpc"] = {**result, "horizon": mpc.config.horizon, "points": mpc.config.n_points}
+        rows.append([f"mpc N={mpc.config.horizon} K={mpc.config.n_points}", result["end_to_end"]["median_us"],
+                     result["end_to_end"]["p99_us"], result["qp_calls"]["median_us"], result["qp_calls"]["p99_us"],
+                     result["solve"]["median_us"], result["solve"]["p99_us"],
+                     f"{100 * result['qp_fraction']:.0f}%", f"{base / result['end_to_end']['median_us']:.1f}x"])
+
+    print()
+    print(markdown_table(["filter", "median µs", "p99 µs", "QP-call median µs", "QP-call p99 µs",
+                          "solve median µs", "solve p99 µs", "calls with QP", "speed-up vs baseline"], rows))
+
+    if args.real:
+        default = args.solvers.split(",")[0]
+        results["real"] = real_recordings(robot, default, per_scan=3, seed=args.seed)
+        real_rows = [[row["recording"], row["scans"], row["beams"], row["end_to_end"]["median_us"],
+                      row["end_to_end"]["p99_us"], row["qp_calls"]["median_us"], row["qp_calls"]["p99_us"],
+                      f"{100 * row['qp_fraction']:.0f}%", row["statuses"].get(FilterStatus.FALLBACK.value, 0)]
+                     for row in results["real"]]
+        print()
+        print(f"real recordings, cbf/{default}, 3 random nominal commands per scan:")
+        print(markdown_table(["recording", "scans", "beams", "median µs", "p99 µs", "QP-call median µs",
+                              "QP-call p99 µs", "calls with QP", "fallbacks"], real_rows))
+    write_json(args.json, results)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
