@@ -208,17 +208,17 @@ class RobotSpec:
 
         Returns:
             ``(lower, upper)`` arrays [m/s, rad/s]: the velocity limits intersected with
-            ``velocity +- (a_max, alpha_max) * dt``. The box is never empty: a current
-            velocity outside the limits yields the reachable command nearest the limits.
+            ``velocity +- (a_max, alpha_max) * dt``. The box is never empty and always inside
+            the limits: from a current velocity beyond a limit (an odometry glitch, a push),
+            the only command left is that limit, which the base approaches as fast as it can.
         """
         lower, upper = self.lower, self.upper
         if velocity is None or dt is None:
             return lower, upper
         current = np.asarray(velocity, dtype=float)
         step = np.array([self.a_max, self.alpha_max]) * dt
-        reach_low, reach_high = current - step, current + step
-        new_lower = np.minimum(np.maximum(lower, reach_low), reach_high)
-        new_upper = np.maximum(np.minimum(upper, reach_high), reach_low)
+        new_lower = np.clip(current - step, lower, upper)
+        new_upper = np.clip(current + step, lower, upper)
         return np.minimum(new_lower, new_upper), np.maximum(new_lower, new_upper)
 
     def clip(self, u: Any, velocity: Sequence[float] | np.ndarray | None = None, dt: float | None = None) -> np.ndarray:

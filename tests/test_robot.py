@@ -58,10 +58,12 @@ def test_velocity_bounds_intersect_limits_with_what_acceleration_allows():
     assert lower.tolist() == [-1.0, -3.0] and upper.tolist() == [1.0, 3.0]
 
 
-def test_velocity_bounds_from_outside_the_limits_step_back_towards_them():
+def test_velocity_bounds_from_outside_the_limits_stay_inside_them():
     robot = preset("rosbot")
     lower, upper = robot.velocity_bounds((2.0, 0.0), dt=0.1)
-    assert lower[0] == upper[0] == pytest.approx(1.85)
+    assert lower[0] == upper[0] == 1.0
+    lower, upper = robot.velocity_bounds((-1.1, 0.0), dt=0.1)
+    assert lower[0] == -1.0 and upper[0] == pytest.approx(-0.95)
 
 
 def test_brake_decelerates_at_the_acceleration_limit():

@@ -167,7 +167,8 @@ class CBFSafetyFilter(SafetyFilter):
     (``5e-8`` m per 50 ms period); a failed solve or check brakes with status ``FALLBACK``.
 
     **Minimal intervention.** When ``u_nom`` satisfies every row and limit, it is
-    returned unchanged (bit for bit) and no QP is solved.
+    returned unchanged (bit for bit) and no QP is solved. Otherwise the QP minimises the
+    weighted distance to ``u_nom`` clipped to the velocity limits.
 
     **Point reduction.** Rows that cannot be active for any reachable command are
     dropped (exact). The QP starts from the nearest point per angular bin around ``p``
@@ -291,7 +292,9 @@ class CBFSafetyFilter(SafetyFilter):
     def _problem(self, u_nom: np.ndarray, G: np.ndarray, rhs: np.ndarray, constraints: _Constraints,
                  slack: bool = False) -> QPData:
         P = self._P
-        q = np.concatenate((-P[:2, :2] @ u_nom, (0.0, 0.0)))
+        # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
+        target = np.clip(u_nom, self.robot.lower, self.robot.upper)
+        q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
         lower, upper = constraints.lower, constraints.upper
         abs_rows = _ABS_ROWS
         if slack:

@@ -1,0 +1,238 @@
+"""What every safety filter promises under bad input: documented errors, braking, never NaN.
+
+Runs against each filter (CBF, and MPC when it is installed) through the shared
+:class:`safenav.filters.SafetyFilter` contract.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from safenav import InvalidCommand, InvalidCommandType, InvalidScan, InvalidScanType, LaserScan, SafeNavError, preset
+from safenav.filters import BRAKING_STATUSES, CBFSafetyFilter, FilterResult, FilterStatus
+from safenav.synthetic import Scene, synthetic_scan, wall
+
+DT = 0.05
+
+
+def filter_factories():
+    factories = [pytest.param(lambda robot: CBFSafetyFilter(robot, DT), id="cbf")]
+    try:
+        from safenav.filters.mpc import MPCSafetyFilter
+    except ImportError:
+        return factories
+    factories.append(pytest.param(lambda robot: MPCSafetyFilter(robot, DT), id="mpc"))
+    return factories
+
+
+FILTERS = filter_factories()
+
+
+def assert_safe_command(result: FilterResult, robot, velocity=None) -> None:
+    assert np.all(np.isfinite(result.u))
+    lower, upper = robot.velocity_bounds(velocity, DT if velocity is not None else None)
+    assert np.all(result.u >= lower - 1e-9) and np.all(result.u <= upper + 1e-9)
+
+
+# ------------------------------------------------------------------ stale data watchdog
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_scan_older_than_the_timeout_brakes_and_a_fresh_one_does_not(make):
+    robot = preset("rosbot")
+    filt = make(robot)
+    scan = robot.scan()
+    fresh = filt.filter((0.5, 0.0), scan, scan_age=0.1)
+    assert fresh.status is FilterStatus.OK and fresh.u[0] == 0.5
+    stale = filt.filter((0.5, 0.0), scan, scan_age=filt.scan_timeout + 0.01, velocity=(0.5, 0.0))
+    assert stale.status is FilterStatus.STALE and stale.braked
+    assert stale.u == pytest.approx(robot.brake((0.5, 0.0), DT))
+    assert "old" in stale.message and "timeout" in stale.message
+
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_watchdog_reads_the_scan_stamp_against_a_clock(make):
+    robot = preset("puzzlebot")
+    filt = make(robot)
+    scan = robot.scan(stamp=100.0)
+    assert filt.filter((0.2, 0.0), scan, now=100.2).status is FilterStatus.OK
+    assert filt.filter((0.2, 0.0), scan, now=101.0).status is FilterStatus.STALE
+    assert filt.filter((0.2, 0.0), scan, scan_age=math.nan).status is FilterStatus.STALE
+
+
+def test_scan_timeout_is_configurable():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT, scan_timeout=2.0)
+    assert filt.filter((0.5, 0.0), robot.scan(), scan_age=1.5).status is FilterStatus.OK
+
+
+# ------------------------------------------------------------------ malformed input: a table
+
+MALFORMED_CALLS = [
+    # (u_nom, scan or None for a valid one, velocity, exception, fragment)
+    ((1.0,), None, None, InvalidCommand, "u_nom must have shape (2,)"),
+    ((1.0, 2.0, 3.0), None, None, InvalidCommand, "u_nom must have shape (2,)"),
+    ([[0.1, 0.2]], None, None, InvalidCommand, "u_nom must have shape (2,)"),
+    ("forward", None, None, InvalidCommandType, "u_nom must be a pair"),
+    (None, None, None, InvalidCommandType, "u_nom must be a pair"),
+    ((0.1, "left"), None, None, InvalidCommandType, "u_nom must be a pair"),
+    ((0.1, 0.0), "scan", None, InvalidScanType, "scan must be a safenav LaserScan"),
+    ((0.1, 0.0), [1.0, 2.0], None, InvalidScanType, "scan must be a safenav LaserScan"),
+    ((0.1, 0.0), SimpleNamespace(ranges=[1.0]), None, InvalidScanType, "use LaserScan.from_msg"),
+    ((0.1, 0.0), None, (0.1,), InvalidCommand, "velocity must have shape (2,)"),
+    ((0.1, 0.0), None, "fast", InvalidCommandType, "velocity must be a pair"),
+]
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize(("u_nom", "scan", "velocity", "exception", "fragment"), MALFORMED_CALLS)
+def test_structural_garbage_raises_the_documented_error(make, u_nom, scan, velocity, exception, fragment):
+    robot = preset("rosbot")
+    filt = make(robot)
+    with pytest.raises(exception) as info:
+        filt.filter(u_nom, robot.scan() if scan is None else scan, velocity=velocity)
+    assert type(info.value) is exception
+    assert isinstance(info.value, SafeNavError)
+    assert fragment in str(info.value)
+
+
+GARBAGE_READINGS = [
+    ("all NaN", lambda n: np.full(n, math.nan), FilterStatus.NO_DATA),
+    ("all below range_min", lambda n: np.full(n, 0.01), FilterStatus.NO_DATA),
+    ("all negative", lambda n: np.full(n, -3.0), FilterStatus.NO_DATA),
+    ("all 1e308", lambda n: np.full(n, 1e308), FilterStatus.NO_DATA),
+    ("all denormal", lambda n: np.full(n, 5e-324), FilterStatus.NO_DATA),
+    ("all +inf", lambda n: np.full(n, math.inf), FilterStatus.OK),
+    ("all -inf", lambda n: np.full(n, -math.inf), None),   # an object at the sensor all around
+]
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize(("label", "readings", "expected"), GARBAGE_READINGS)
+def test_garbage_readings_are_handled_per_rep117_and_never_give_nan(make, label, readings, expected):
+    robot = preset("rosbot")
+    filt = make(robot)
+    scan = robot.scan(readings(robot.lidar.n_beams))
+    result = filt.filter((0.8, 1.0), scan, velocity=(0.5, 0.0))
+    assert_safe_command(result, robot, (0.5, 0.0))
+    if expected is not None:
+        assert result.status is expected, label
+    else:
+        assert result.status is not FilterStatus.OK   # surrounded: it must not pass the nominal through
+        assert result.message
+    if result.braked:
+        assert result.message
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize("u_nom", [(math.nan, 0.0), (0.0, math.inf), (-math.inf, math.nan)])
+def test_non_finite_nominal_brakes_with_bad_input(make, u_nom):
+    robot = preset("m2wr")
+    result = make(robot).filter(u_nom, robot.scan(), velocity=(0.6, 0.2))
+    assert result.status is FilterStatus.BAD_INPUT and result.braked
+    assert result.u == pytest.approx(robot.brake((0.6, 0.2), DT))
+    assert "u_nom is not finite" in result.message
+
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_non_finite_velocity_brakes_with_bad_input(make):
+    robot = preset("rosbot")
+    result = make(robot).filter((0.3, 0.0), robot.scan(), velocity=(math.nan, 0.0))
+    assert result.status is FilterStatus.BAD_INPUT and result.u.tolist() == [0.0, 0.0]
+
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_single_beam_and_huge_scans_are_filtered(make):
+    robot = preset("rosbot")
+    filt = make(robot)
+    single = LaserScan(angle_min=0.0, angle_max=0.0, angle_increment=0.01, range_min=0.1, range_max=10.0,
+                       ranges=[0.6])
+    result = filt.filter((0.5, 0.0), single)
+    assert_safe_command(result, robot)
+    assert result.u[0] <= 1e-12   # one beam sees almost nothing: forward motion is into the unknown
+    n = 100_000
+    rng = np.random.default_rng(0)
+    huge = LaserScan(angle_min=-math.pi, angle_max=math.pi - 2 * math.pi / n, angle_increment=2 * math.pi / n,
+                     range_min=0.1, range_max=10.0, ranges=rng.uniform(0.5, 5.0, n))
+    result = filt.filter((0.5, 0.3), huge)
+    assert_safe_command(result, robot)
+    assert result.status in (FilterStatus.OK, FilterStatus.RECOVERING)
+
+
+# ------------------------------------------------------------------ fuzzing
+
+special = st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 0.0, 5e-324, 1e-310, 1e308, -1e308, 1e-3])
+reading = st.one_of(st.floats(0.0, 20.0), special)
+
+
+@st.composite
+def hostile_scans(draw):
+    """Well-formed scans (they validate) whose readings are anything REP-117 allows, and worse."""
+    robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
+    n = robot.lidar.n_beams
+    base = draw(st.sampled_from(["garbage", "wall", "free"]))
+    if base == "wall":
+        ranges = synthetic_scan(robot, Scene.of(wall(draw(st.floats(0.05, 3.0)), draw(st.floats(-3.2, 3.2))))).ranges
+        ranges = ranges.copy()
+    elif base == "free":
+        ranges = np.full(n, math.inf)
+    else:
+        ranges = np.full(n, draw(reading))
+    for _ in range(draw(st.integers(0, 30))):
+        start = draw(st.integers(0, n - 1))
+        ranges[start:start + draw(st.integers(1, 60))] = draw(reading)
+    return robot, robot.scan(ranges)
+
+
+commands = st.one_of(
+    st.tuples(st.floats(-3.0, 3.0), st.floats(-10.0, 10.0)),
+    st.tuples(st.sampled_from([math.nan, math.inf, -math.inf, 1e308]), st.floats(-1.0, 1.0)),
+)
+
+
+@settings(max_examples=2500)
+@given(hostile_scans(), commands, st.one_of(st.none(), st.tuples(st.floats(-1.0, 1.0), st.floats(-3.0, 3.0))),
+       st.one_of(st.none(), st.floats(0.0, 1.0)))
+def test_cbf_never_raises_never_returns_nan_on_hostile_readings(case, u_nom, velocity, scan_age):
+    robot, scan = case
+    result = CBFSafetyFilter(robot, DT).filter(u_nom, scan, velocity=velocity, scan_age=scan_age)
+    assert_safe_command(result, robot, velocity)
+    assert (result.status in BRAKING_STATUSES) == result.braked
+    if result.status is not FilterStatus.OK:
+        assert result.message
+
+
+message_fields = {
+    "angle_min": st.one_of(st.floats(-4.0, 4.0), st.sampled_from([math.nan, math.inf, "0", None])),
+    "angle_max": st.one_of(st.floats(-4.0, 7.0), st.sampled_from([math.nan, -math.inf, None])),
+    "angle_increment": st.one_of(st.floats(-0.1, 0.1), st.sampled_from([0.0, math.nan, 1e-300, True, "x"])),
+    "range_min": st.one_of(st.floats(-1.0, 1.0), st.sampled_from([math.nan, None])),
+    "range_max": st.one_of(st.floats(-1.0, 40.0), st.sampled_from([math.inf, math.nan, "12"])),
+    "time_increment": st.one_of(st.floats(-1e-3, 1e-3), st.sampled_from([math.nan, None])),
+    "scan_time": st.one_of(st.floats(0.0, 0.2), st.sampled_from([math.inf, "0.1"])),
+    "ranges": st.one_of(st.lists(reading, max_size=400), st.sampled_from([None, "1 2 3", [[1.0, 2.0]], [1.0, None],
+                                                                          [[1.0], [2.0, 3.0]], {"a": 1}, 3.0])),
+    "intensities": st.one_of(st.lists(st.floats(0, 100), max_size=5), st.sampled_from([None, "bright", ()])),
+}
+
+
+@settings(max_examples=2500)
+@given(st.fixed_dictionaries(message_fields), st.booleans(), commands)
+def test_from_msg_raises_only_documented_errors_and_what_it_accepts_filters_safely(fields, drop, u_nom):
+    message = SimpleNamespace(**fields)
+    if drop:
+        del message.scan_time
+    try:
+        scan = LaserScan.from_msg(message)
+    except InvalidScan as error:   # InvalidScanType is a subclass
+        assert str(error)
+        return
+    robot = preset("rosbot")
+    result = CBFSafetyFilter(robot, DT).filter(u_nom, scan)
+    assert np.all(np.isfinite(result.u))
+    assert np.all(result.u >= robot.lower - 1e-9) and np.all(result.u <= robot.upper + 1e-9)
