@@ -13,6 +13,7 @@ from safenav.errors import (
     InvalidScanType,
     MissingDependency,
     SafeNavError,
+    SimulatorError,
     UnknownName,
 )
 from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
@@ -38,6 +39,7 @@ __all__ = [
     "SafeNavError",
     "SectorReading",
     "SectorState",
+    "SimulatorError",
     "UnknownName",
     "as_command",
     "preset",

@@ -24,6 +24,7 @@ __all__ = [
     "InvalidConfig",
     "UnknownName",
     "MissingDependency",
+    "SimulatorError",
 ]
 
 
@@ -65,6 +66,10 @@ class UnknownName(SafeNavError, ValueError):
         if hint:
             message += f" ({hint})"
         super().__init__(message)
+
+
+class SimulatorError(SafeNavError, RuntimeError):
+    """The simulator was used out of order (stepped before ``reset()``, or after ``close()``)."""
 
 
 class MissingDependency(SafeNavError, ImportError):

@@ -74,7 +74,12 @@ class Scene:
         return cls(tuple(x for x in flat if isinstance(x, Segment)), tuple(x for x in flat if isinstance(x, Circle)))
 
     def clearance(self, center: tuple[float, float], radius: float) -> float:
-        """Signed distance from a disk of ``radius`` at ``center`` to the nearest item [m] (inf if empty)."""
+        """Distance from a disk of ``radius`` at ``center`` to the nearest item [m] (inf if empty).
+
+        Negative when the disk overlaps an item. Segments have no inside, so a disk whose
+        centre lies on the far side of a wall segment is measured to the segment, not as
+        "inside"; :meth:`safenav.worlds.World.clearance` is the signed version for solid walls.
+        """
         c = np.asarray(center, dtype=float)
         best = math.inf
         seg = self._segment_array

@@ -123,7 +123,12 @@ def test_reduction_gives_the_answer_of_the_full_qp(case):
         return
     full = filt.build_qp(u_nom, scan, velocity, reduce=False)
     reference = qpsolvers.solve_problem(full, solver="quadprog")
-    assert reference.found
+    if not reference.found:
+        # Only problems infeasible by less than the verification tolerance get here (e.g. both
+        # directions unseen and a current velocity of 1e-7 m/s): the answer must satisfy the
+        # full QP to that tolerance, and there is no exact optimum to compare with.
+        assert full_residual(filt, u_nom, scan, velocity, result.u).max() <= 1e-6
+        return
     assert np.max(np.abs(reference.x[:2] - result.u)) <= 1e-6
     assert result.n_constraints <= full.G.shape[0] - 4
 
@@ -158,7 +163,7 @@ def test_working_set_and_constraint_generation_match_the_full_qp(monkeypatch):
 def test_wall_ahead_limits_speed_to_the_derived_bound():
     robot = preset("rosbot")
     filt = CBFSafetyFilter(robot, DT)
-    distance = 0.3
+    distance = 0.45
     scan = synthetic_scan(robot, Scene.of(wall(distance)))
     result = filt.filter((robot.v_max, 0.0), scan)
     ell, margin = filt.lookahead, filt.margin
@@ -241,7 +246,7 @@ def test_robot_inside_the_margin_moves_back_out():
 def test_moving_too_fast_to_brake_relaxes_with_slack_and_brakes_hard():
     robot = preset("rosbot")
     filt = CBFSafetyFilter(robot, DT)
-    scan = synthetic_scan(robot, Scene.of(wall(0.35)))
+    scan = synthetic_scan(robot, Scene.of(wall(0.5)))
     result = filt.filter((1.0, 0.0), scan, velocity=(1.0, 0.0))
     assert result.status is FilterStatus.SLACK
     assert result.slack > 0

@@ -174,12 +174,27 @@ class PersistentOSQP:
         upper[n_vars:n_vars + m] = h
         solver.update(q=qp.q, l=lower, u=upper, Px=np.diag(P).copy(), Ax=Ax)
         result = solver.solve(raise_error=False)
+        if not self._acceptable(result, qp):
+            # A warm start from an unrelated previous problem can stall ADMM: start cold, allow longer.
+            solver.warm_start(x=np.zeros(n_vars), y=np.zeros(n_vars + capacity))
+            solver.update_settings(max_iter=10 * self.settings["max_iter"])
+            result = solver.solve(raise_error=False)
+            solver.update_settings(max_iter=self.settings["max_iter"])
         elapsed = time.perf_counter() - start
         status = str(result.info.status)
         x = np.asarray(result.x, dtype=float)
         # "solved inaccurate" is returned too: the filter's own verification decides.
         usable = result.info.status_val in (1, 2) and x.shape == (n_vars,) and np.all(np.isfinite(x))
         return QPOutcome(x if usable else None, status, elapsed)
+
+    @staticmethod
+    def _acceptable(result: Any, qp: QPData, tolerance: float = 1e-8) -> bool:
+        """Solved, finite, and inside the rows and bounds to ``tolerance``."""
+        x = np.asarray(result.x, dtype=float)
+        if result.info.status_val != 1 or x.shape != qp.q.shape or not np.all(np.isfinite(x)):
+            return False
+        return bool(np.all(qp.G @ x <= qp.h + tolerance) and np.all(x >= qp.lb - tolerance)
+                    and np.all(x <= qp.ub + tolerance))
 
 
 class DirectDAQP:

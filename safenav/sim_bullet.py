@@ -1,0 +1,586 @@
+"""A PyBullet simulator of a lidar-driven differential-drive robot, with truth for metrics.
+
+:class:`BulletSim` closes the loop of DESIGN.md section 1: it builds a
+:class:`~safenav.worlds.World` into PyBullet (headless ``p.DIRECT`` by default,
+``SimConfig(gui=True)`` to watch), moves the robot, and returns what the robot
+would sense plus the truth the metrics need::
+
+    from safenav import preset
+    from safenav.sim_bullet import BulletSim, SimConfig
+    from safenav.worlds import tutorial_world
+
+    with BulletSim(tutorial_world("stop_at_wall"), preset("rosbot"), seed=0) as sim:
+        state = sim.reset()
+        while state.scan.sector(-0.26, 0.26).min_range > 1.0:
+            state = sim.step((0.5, 0.0))
+
+Model, and why:
+
+* **Obstacles** are ONE static triangle-mesh body: Bullet builds a bounding-volume
+  hierarchy over it, the fastest shape to ray-cast (DESIGN.md section 5; one body per
+  obstacle or per tile of the floor measured no faster). The mesh holds only the vertical
+  sides of the prisms: rays are horizontal and never need the caps. Cylinders become
+  circumscribed regular polygons that lie between the circle and a circle
+  ``SimConfig.cylinder_tolerance`` (1 mm by default) larger: the lidar never reads a post
+  long, reads it at most that much short along its normal, and a beam that grazes a post
+  within the tolerance may hit the polygon where the circle would let it pass. Bullet
+  reports hit fractions in single precision: about 1e-7 of ``range_max``.
+* **Robot** is kinematic. A command ``(v, omega)`` is clipped to the velocity limits;
+  the base's velocity follows it at every physics step under the acceleration limits
+  (:meth:`~safenav.robot.RobotSpec.clip` with the current velocity), and the pose
+  advances by the exact arc of :func:`~safenav.geometry.unicycle_step` at the velocity
+  held over that physics step. Contacts are detected, not resolved: a robot driven
+  into a wall passes through it, and the collision is recorded.
+  The robot's PyBullet body has a visual shape and no collision shape, so rays never
+  hit it.
+* **Lidar**: one ``rayTestBatch`` per scan, in the frame of the robot body, from the
+  true mount (``lidar.mount`` with ``SimConfig.mount_yaw_error`` added to its yaw) at
+  ``lidar.height``, one ray per beam of the preset, ``range_max`` long. Hits closer than
+  ``range_min`` read ``-inf``, no hit reads ``+inf`` (REP-117); a sensor inside an
+  obstacle reads ``-inf`` on every beam. All beams are cast at the same instant (no
+  motion distortion). The scan is returned in the preset's own convention
+  (:meth:`~safenav.robot.LidarSpec.scan`), with the *nominal* mount.
+* **Truth**: the body clearance is exact and analytic (:meth:`World.clearance
+  <safenav.worlds.World.clearance>` on the true circles and rectangles), evaluated at
+  every physics step for the first-collision time. :meth:`BulletSim.bullet_clearance`
+  measures the same thing with PyBullet's ``getClosestPoints`` for cross-checks.
+
+Noise and delays (all off by default except the preset's lidar noise), drawn from one
+``np.random.default_rng(seed)`` so the same seed gives the same episode:
+
+* range noise: Gaussian, std ``SimConfig.range_noise`` [m] (the preset's
+  ``lidar.noise_std`` when ``None``), added to every hit before the range limits apply;
+* dropout: each beam reads ``NaN`` with probability ``SimConfig.dropout``;
+* actuation noise: *relative*. Once per control period a factor ``1 + s * N(0, 1)`` is
+  drawn for ``v`` and another for ``omega``, ``s = SimConfig.actuation_noise``; the executed
+  velocity is the tracked velocity times these factors (wheel slip and calibration
+  error: nothing moves when the command is zero);
+* command latency: a command is executed ``command_latency`` control periods after
+  :meth:`BulletSim.step` receives it (zeros before the first one arrives);
+* scan latency: the scan delivered at a step was acquired ``scan_latency`` control
+  periods earlier (the reset scan until then); ``scan.stamp`` stays the acquisition time.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import math
+import numbers
+import operator
+import time
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pybullet
+
+from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
+from safenav.geometry import Pose2D, unicycle_step
+from safenav.robot import RobotSpec, as_command
+from safenav.scan import LaserScan
+from safenav.worlds import World
+
+__all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "obstacle_mesh"]
+
+_OBSTACLE_RGBA = (0.55, 0.55, 0.55, 1.0)
+_ROBOT_RGBA = (0.17, 0.63, 0.17, 1.0)
+_GOAL_RGBA = (0.58, 0.40, 0.74, 0.8)
+_HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit fraction, position, normal)
+
+
+def _number(name: str, value: Any, *, low: float | None = None, high: float | None = None,
+            low_open: bool = False, high_open: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise InvalidConfig(f"SimConfig.{name} must be a finite number, got {value!r}")
+    result = float(value)
+    if low is not None and (result < low or (low_open and result == low)):
+        raise InvalidConfig(f"SimConfig.{name} must be {'>' if low_open else '>='} {low:g}, got {value!r}")
+    if high is not None and (result > high or (high_open and result == high)):
+        raise InvalidConfig(f"SimConfig.{name} must be {'<' if high_open else '<='} {high:g}, got {value!r}")
+    return result
+
+
+def _integer(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise InvalidConfig(f"SimConfig.{name} must be an integer >= 0, got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Settings of :class:`BulletSim`; validated on construction.
+
+    Attributes:
+        control_dt: control period [s]: :meth:`BulletSim.step` holds a command this long.
+        physics_dt: integration step [s]; ``control_dt`` must be a whole multiple of it.
+        range_noise: std of the Gaussian range noise [m]; ``None`` takes the preset's
+            ``lidar.noise_std``.
+        dropout: probability that a beam reads ``NaN``, in ``[0, 1)``.
+        actuation_noise: std of the *relative* noise on the executed ``(v, omega)``
+            (0.05 means 5 %), one draw per control period and axis.
+        command_latency: control periods between a command and its execution.
+        scan_latency: control periods between a scan's acquisition and its delivery.
+        mount_yaw_error: true lidar yaw minus the yaw the scan reports [rad].
+        gui: open the PyBullet GUI instead of running headless.
+        gui_realtime: with the GUI, pace the simulation to the wall clock.
+        num_threads: threads for ``rayTestBatch`` (0 = all cores).
+        cylinder_tolerance: largest gap between a cylinder and the polygon the lidar sees [m].
+    """
+
+    control_dt: float = 0.05
+    physics_dt: float = 0.01
+    range_noise: float | None = None
+    dropout: float = 0.0
+    actuation_noise: float = 0.0
+    command_latency: int = 0
+    scan_latency: int = 0
+    mount_yaw_error: float = 0.0
+    gui: bool = False
+    gui_realtime: bool = True
+    num_threads: int = 1
+    cylinder_tolerance: float = 0.001
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        put(self, "control_dt", _number("control_dt", self.control_dt, low=0.0, low_open=True))
+        put(self, "physics_dt", _number("physics_dt", self.physics_dt, low=0.0, low_open=True))
+        ratio = self.control_dt / self.physics_dt
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6 * ratio:
+            raise InvalidConfig(f"SimConfig.control_dt={self.control_dt!r} must be a whole multiple of "
+                                f"physics_dt={self.physics_dt!r} (ratio {ratio:.6g})")
+        if self.range_noise is not None:
+            put(self, "range_noise", _number("range_noise", self.range_noise, low=0.0))
+        put(self, "dropout", _number("dropout", self.dropout, low=0.0, high=1.0, high_open=True))
+        put(self, "actuation_noise", _number("actuation_noise", self.actuation_noise, low=0.0))
+        put(self, "command_latency", _integer("command_latency", self.command_latency))
+        put(self, "scan_latency", _integer("scan_latency", self.scan_latency))
+        put(self, "mount_yaw_error", _number("mount_yaw_error", self.mount_yaw_error, low=-math.pi, high=math.pi))
+        for name in ("gui", "gui_realtime"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidConfig(f"SimConfig.{name} must be True or False, got {getattr(self, name)!r}")
+        put(self, "num_threads", _integer("num_threads", self.num_threads))
+        put(self, "cylinder_tolerance", _number("cylinder_tolerance", self.cylinder_tolerance, low=0.0,
+                                                low_open=True))
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control period."""
+        return round(self.control_dt / self.physics_dt)
+
+
+@dataclass(frozen=True, eq=False)
+class SimState:
+    """What the simulator reports after a reset or a step.
+
+    ``scan`` is what the robot senses, ``velocity`` stands for its odometry and ``pose``
+    for the localisation a goal-seeking policy needs. ``clearance``, ``collided``,
+    ``first_collision_time`` and ``min_clearance`` are truth for metrics and tests:
+    safety filters must never read them.
+
+    Attributes:
+        time: simulated time since the reset [s].
+        pose: pose of the base [m, m, rad].
+        velocity: actual ``(v [m/s], omega [rad/s])`` over the last physics step (read-only).
+        scan: the delivered scan; ``stamp`` is its acquisition time [s] and ``mount`` the
+            nominal ``robot.lidar.mount``.
+        clearance: signed body clearance to the nearest obstacle [m] (negative: overlap).
+        collided: the body overlaps an obstacle now.
+        first_collision_time: time of the first physics step with an overlap since the reset [s].
+        min_clearance: smallest clearance over the physics steps of the last control period [m].
+        command: the command the base tracked during the last period, after clipping to the
+            velocity limits and the command latency [m/s, rad/s] (read-only).
+        steps: control periods since the reset.
+    """
+
+    time: float
+    pose: Pose2D
+    velocity: np.ndarray
+    scan: LaserScan
+    clearance: float
+    collided: bool
+    first_collision_time: float | None
+    min_clearance: float
+    command: np.ndarray
+    steps: int
+
+
+def obstacle_mesh(world: World, *, height: float | None = None, tolerance: float = 0.001,
+                  caps: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The obstacles of ``world`` as one triangle mesh of vertical prisms.
+
+    Args:
+        world: the world.
+        height: height of the prisms [m]; ``world.obstacle_height`` by default.
+        tolerance: largest distance between a cylinder and its circumscribed polygon [m].
+        caps: include the top and bottom faces (for drawing; horizontal rays never hit them).
+
+    Returns:
+        ``(vertices, indices)``: an ``(N, 3)`` float array [m] and an ``(M, 3)`` int array of
+        triangles, counter-clockwise seen from outside.
+    """
+    top = world.obstacle_height if height is None else height
+    vertices: list[np.ndarray] = []
+    triangles: list[np.ndarray] = []
+    offset = 0
+    for obstacle in world.obstacles:
+        outline = obstacle.polygon(tolerance)
+        n = len(outline)
+        vertices.append(np.column_stack((np.vstack((outline, outline)), np.repeat([0.0, top], n))))
+        i = np.arange(n)
+        j = (i + 1) % n
+        sides = np.concatenate((np.column_stack((i, j, j + n)), np.column_stack((i, j + n, i + n))))
+        faces = [sides]
+        if caps:
+            k = np.arange(1, n - 1)
+            faces.append(np.column_stack((np.zeros(n - 2, dtype=int), k + 1, k)))
+            faces.append(np.column_stack((np.full(n - 2, n), n + k, n + k + 1)))
+        triangles.append(np.concatenate(faces) + offset)
+        offset += 2 * n
+    if not vertices:
+        return np.empty((0, 3)), np.empty((0, 3), dtype=int)
+    return np.concatenate(vertices), np.concatenate(triangles).astype(int)
+
+
+def _disconnect(client: int) -> None:
+    with contextlib.suppress(pybullet.error):   # already gone
+        pybullet.disconnect(physicsClientId=client)
+
+
+class BulletSim:
+    """A differential-drive robot with a 2D lidar in a :class:`~safenav.worlds.World`, in PyBullet.
+
+    Gymnasium-like: :meth:`reset` returns the first :class:`SimState`, :meth:`step` holds
+    a command for one control period and returns the next. Use it as a context manager
+    (or call :meth:`close`) to release the PyBullet connection.
+
+    Args:
+        world: the world to build.
+        robot: the robot (body radius, limits, lidar).
+        config: simulator settings.
+        seed: seed of the generator behind every random draw (noise, dropout, actuation
+            noise); ``None`` draws fresh entropy, as ``np.random.default_rng(None)``.
+
+    Raises:
+        InvalidConfig: a bad argument, or a lidar that scans above the obstacles.
+    """
+
+    def __init__(self, world: World, robot: RobotSpec, config: SimConfig = SimConfig(), *,
+                 seed: int | None = None) -> None:
+        if not isinstance(world, World):
+            raise InvalidConfig(f"BulletSim: world must be a safenav.worlds.World, got {world!r}")
+        if not isinstance(robot, RobotSpec):
+            raise InvalidConfig(f"BulletSim: robot must be a RobotSpec, got {robot!r}")
+        if not isinstance(config, SimConfig):
+            raise InvalidConfig(f"BulletSim: config must be a SimConfig, got {config!r}")
+        if robot.lidar.height >= world.obstacle_height:
+            raise InvalidConfig(f"BulletSim: the lidar scans at {robot.lidar.height} m, above the obstacles of "
+                                f"world {world.name!r} ({world.obstacle_height} m); expected a lower lidar")
+        self.world = world
+        self.robot = robot
+        self.config = config
+        self._rng = np.random.default_rng(seed)
+        self._range_noise = robot.lidar.noise_std if config.range_noise is None else config.range_noise
+        self._client = pybullet.connect(pybullet.GUI if config.gui else pybullet.DIRECT)
+        if self._client < 0:
+            raise SimulatorError("could not connect to PyBullet" + (" (GUI needs a display)" if config.gui else ""))
+        self._finalizer = weakref.finalize(self, _disconnect, self._client)
+        self._obstacle_body = self._build_obstacles()
+        self._robot_body = self._build_robot()
+        self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
+                                                    physicsClientId=self._client)
+        self._build_rays()
+        if config.gui:
+            self._set_up_gui()
+        self._state: SimState | None = None
+
+    # ------------------------------------------------------------------ construction
+
+    def _build_obstacles(self) -> int | None:
+        if not self.world.obstacles:
+            return None
+        client = self._client
+        vertices, indices = obstacle_mesh(self.world, tolerance=self.config.cylinder_tolerance)
+        shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=vertices.tolist(),
+                                              indices=indices.ravel().tolist(), physicsClientId=client)
+        visual_vertices, visual_indices = obstacle_mesh(self.world, tolerance=self.config.cylinder_tolerance,
+                                                        caps=True)
+        visual = pybullet.createVisualShape(pybullet.GEOM_MESH, vertices=visual_vertices.tolist(),
+                                            indices=visual_indices.ravel().tolist(), rgbaColor=_OBSTACLE_RGBA,
+                                            physicsClientId=client)
+        if shape < 0 or visual < 0:
+            raise SimulatorError(f"PyBullet could not build the obstacle mesh of world {self.world.name!r}")
+        return pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape, baseVisualShapeIndex=visual,
+                                        physicsClientId=client)
+
+    def _build_robot(self) -> int:
+        """A body with a visual shape only: it carries the lidar frame and shows the robot in the GUI."""
+        robot, client = self.robot, self._client
+        visual = pybullet.createVisualShapeArray(
+            shapeTypes=[pybullet.GEOM_CYLINDER, pybullet.GEOM_BOX],
+            radii=[robot.radius, 0.0],
+            lengths=[robot.height, 0.0],
+            halfExtents=[[0.0, 0.0, 0.0], [0.5 * robot.radius, 0.015, 0.01]],
+            visualFramePositions=[[0.0, 0.0, 0.5 * robot.height], [0.5 * robot.radius, 0.0, robot.height + 0.01]],
+            rgbaColors=[list(_ROBOT_RGBA), [0.1, 0.1, 0.1, 1.0]],
+            physicsClientId=client,
+        )
+        return pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=visual,
+                                        physicsClientId=client)
+
+    def _build_rays(self) -> None:
+        """Ray end points in the robot body frame, through the true mount, one per beam."""
+        lidar = self.robot.lidar
+        mount = lidar.mount
+        template = lidar.scan()
+        directions = template.angles + mount.yaw + self.config.mount_yaw_error
+        origin = [mount.x, mount.y, lidar.height]
+        self._ray_from = [origin] * lidar.n_beams
+        self._ray_to = np.column_stack((mount.x + lidar.range_max * np.cos(directions),
+                                        mount.y + lidar.range_max * np.sin(directions),
+                                        np.full(lidar.n_beams, lidar.height))).tolist()
+        self._true_mount = Pose2D(mount.x, mount.y, mount.yaw + self.config.mount_yaw_error)
+        self._mount_offset = math.hypot(mount.x, mount.y)
+
+    def _set_up_gui(self) -> None:
+        client = self._client
+        xmin, ymin, xmax, ymax = self.world.bounds
+        floor = pybullet.createVisualShape(pybullet.GEOM_BOX, halfExtents=[0.5 * (xmax - xmin), 0.5 * (ymax - ymin),
+                                                                          0.005],
+                                           rgbaColor=[0.92, 0.92, 0.88, 1.0], physicsClientId=client)
+        pybullet.createMultiBody(0.0, -1, floor, basePosition=[0.5 * (xmin + xmax), 0.5 * (ymin + ymax), -0.005],
+                                 physicsClientId=client)
+        if self.world.goal is not None:
+            marker = pybullet.createVisualShape(pybullet.GEOM_SPHERE, radius=0.1, rgbaColor=_GOAL_RGBA,
+                                                physicsClientId=client)
+            pybullet.createMultiBody(0.0, -1, marker, basePosition=[*self.world.goal, 0.1], physicsClientId=client)
+        pybullet.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0, physicsClientId=client)
+        pybullet.resetDebugVisualizerCamera(cameraDistance=0.8 * max(xmax - xmin, ymax - ymin), cameraYaw=0.0,
+                                            cameraPitch=-70.0,
+                                            cameraTargetPosition=[0.5 * (xmin + xmax), 0.5 * (ymin + ymax), 0.0],
+                                            physicsClientId=client)
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def client_id(self) -> int:
+        """The PyBullet physics client id (for extra queries; do not move the bodies)."""
+        return self._client
+
+    @property
+    def obstacle_body(self) -> int | None:
+        """PyBullet id of the static obstacle mesh, ``None`` in a world without obstacles."""
+        return self._obstacle_body
+
+    @property
+    def state(self) -> SimState:
+        """The latest state.
+
+        Raises:
+            SimulatorError: before the first :meth:`reset`.
+        """
+        if self._state is None:
+            raise SimulatorError("BulletSim has no state yet; call reset() first")
+        return self._state
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return not self._finalizer.alive
+
+    # ------------------------------------------------------------------ truth
+
+    def clearance(self, pose: Pose2D | Sequence[float] | None = None) -> float:
+        """Exact signed body clearance at ``pose`` (the current pose by default) [m]."""
+        return self.world.clearance(self.state.pose if pose is None else pose, self.robot.radius)
+
+    def bullet_clearance(self, pose: Pose2D | Sequence[float] | None = None, max_distance: float = 2.0) -> float:
+        """Body clearance at ``pose`` measured by PyBullet's ``getClosestPoints`` [m].
+
+        A sphere of the body radius at the lidar height is tested against the obstacle
+        mesh; on vertical prisms that equals the clearance of the body disk, up to the
+        cylinder polygon tolerance (the polygon is larger, so the value is smaller).
+        For cross-checks of :meth:`clearance`.
+
+        Args:
+            pose: the base pose (or position); the current pose by default.
+            max_distance: only obstacles closer than this are considered [m].
+
+        Returns:
+            The smallest signed distance found, ``inf`` when nothing is within ``max_distance``.
+        """
+        self._check_open()
+        if self._obstacle_body is None:
+            return math.inf
+        position = self.state.pose if pose is None else pose
+        points = pybullet.getClosestPoints(bodyA=-1, bodyB=self._obstacle_body, distance=float(max_distance),
+                                           collisionShapeA=self._probe,
+                                           collisionShapePositionA=[float(position[0]), float(position[1]),
+                                                                    self.robot.lidar.height],
+                                           physicsClientId=self._client)
+        return min((point[8] for point in points), default=math.inf)
+
+    # ------------------------------------------------------------------ lidar
+
+    def scan(self, pose: Pose2D | Sequence[float] | None = None, *, stamp: float | None = None) -> LaserScan:
+        """Cast one scan with the base at ``pose`` (the current pose by default), without advancing time.
+
+        Noise and dropout are drawn from the simulator's generator, as in :meth:`step`.
+
+        Args:
+            pose: the base pose [m, m, rad].
+            stamp: acquisition time to put in the scan [s]; the current time by default
+                (``None`` before the first reset).
+        """
+        self._check_open()
+        if pose is None:
+            pose = self.state.pose
+        if stamp is None and self._state is not None:
+            stamp = self._state.time
+        return self._cast(Pose2D(*pose), stamp)
+
+    def _cast(self, pose: Pose2D, stamp: float | None, clearance: float | None = None) -> LaserScan:
+        """One ``rayTestBatch`` from the true mount with the base at ``pose``; ``clearance`` at ``pose`` if known."""
+        lidar = self.robot.lidar
+        n = lidar.n_beams
+        half_yaw = 0.5 * pose.yaw
+        pybullet.resetBasePositionAndOrientation(self._robot_body, [pose.x, pose.y, 0.0],
+                                                 [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
+                                                 physicsClientId=self._client)
+        hits = pybullet.rayTestBatch(self._ray_from, self._ray_to, numThreads=self.config.num_threads,
+                                     parentObjectUniqueId=self._robot_body, physicsClientId=self._client)
+        fraction = np.fromiter(map(_HIT_FRACTION, hits), dtype=float, count=n)
+        ranges = np.where(fraction < 1.0, fraction * lidar.range_max, math.inf)
+        if self._sensor_inside(pose, clearance):
+            ranges[:] = -math.inf   # rays from inside a closed mesh would report its far side
+        if self._range_noise > 0.0:
+            ranges += self._range_noise * self._rng.standard_normal(n)   # +-inf stay +-inf
+        ranges[ranges > lidar.range_max] = math.inf
+        ranges[ranges < lidar.range_min] = -math.inf
+        if self.config.dropout > 0.0:
+            ranges[self._rng.random(n) < self.config.dropout] = math.nan
+        return lidar.scan(ranges, stamp=stamp)
+
+    def _sensor_inside(self, pose: Pose2D, clearance: float | None) -> bool:
+        """Whether the lidar sits inside an obstacle (only possible when the body overlaps one)."""
+        if clearance is not None and clearance >= self._mount_offset - self.robot.radius:
+            return False
+        sensor = pose.compose(self._true_mount)
+        return bool(self.world.signed_distance(np.array([[sensor.x, sensor.y]]))[0] < 0.0)
+
+    # ------------------------------------------------------------------ episode
+
+    def reset(self, seed: int | None = None, start: Pose2D | Sequence[float] | None = None) -> SimState:
+        """Put the robot at rest at ``start`` (the world's start by default) and scan.
+
+        Args:
+            seed: reseed the generator with ``np.random.default_rng(seed)``; ``None``
+                continues the current generator (so a sequence of episodes after one seeded
+                reset is reproducible).
+            start: the start pose [m, m, rad].
+
+        Returns:
+            The state at time 0. It may already be in collision if ``start`` is.
+        """
+        self._check_open()
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        pose = self.world.start if start is None else Pose2D(*(float(v) for v in start))
+        config = self.config
+        self._pose = pose
+        self._tracked = np.zeros(2)
+        self._velocity = np.zeros(2)
+        self._physics_steps = 0
+        self._steps = 0
+        self._commands = collections.deque([np.zeros(2)] * config.command_latency)
+        clearance = self.world.clearance(pose, self.robot.radius)
+        self._first_collision = 0.0 if clearance < 0.0 else None
+        scan = self._cast(pose, 0.0, clearance)
+        self._scans = collections.deque([scan] * (config.scan_latency + 1), maxlen=config.scan_latency + 1)
+        self._wall_start = time.perf_counter()
+        self._state = self._make_state(scan, clearance, clearance, np.zeros(2))
+        return self._state
+
+    def step(self, u: Any) -> SimState:
+        """Hold the command ``u = (v [m/s], omega [rad/s])`` for one control period.
+
+        Raises:
+            InvalidCommand: ``u`` is not a pair of finite numbers.
+            SimulatorError: before :meth:`reset` or after :meth:`close`.
+        """
+        self._check_open()
+        if self._state is None:
+            raise SimulatorError("BulletSim.step() before reset(); call reset() first")
+        command = as_command(u)
+        if not np.all(np.isfinite(command)):
+            raise InvalidCommand(f"u must be finite, got {tuple(command)}")
+        robot, config = self.robot, self.config
+        command = robot.clip(command)
+        if config.command_latency:
+            self._commands.append(command)
+            command = self._commands.popleft()
+        factor = None
+        if config.actuation_noise > 0.0:
+            factor = 1.0 + config.actuation_noise * self._rng.standard_normal(2)
+        dt = config.physics_dt
+        pose, tracked = self._pose, self._tracked
+        min_clearance = math.inf
+        for _ in range(config.substeps):
+            tracked = robot.clip(command, tracked, dt)
+            executed = tracked if factor is None else tracked * factor
+            pose = unicycle_step(pose, float(executed[0]), float(executed[1]), dt)
+            self._physics_steps += 1
+            clearance = self.world.clearance(pose, robot.radius)
+            min_clearance = min(min_clearance, clearance)
+            if clearance < 0.0 and self._first_collision is None:
+                self._first_collision = self._physics_steps * dt
+        self._pose, self._tracked, self._velocity = pose, tracked, executed
+        self._steps += 1
+        now = self._physics_steps * dt
+        self._scans.append(self._cast(pose, now, clearance))
+        if config.gui and config.gui_realtime:
+            lag = self._wall_start + now - time.perf_counter()
+            if lag > 0.0:
+                time.sleep(lag)
+        self._state = self._make_state(self._scans[0], clearance, min_clearance, command)
+        return self._state
+
+    def _make_state(self, scan: LaserScan, clearance: float, min_clearance: float, command: np.ndarray) -> SimState:
+        velocity = np.array(self._velocity, dtype=float)
+        velocity.flags.writeable = False
+        command = np.array(command, dtype=float)
+        command.flags.writeable = False
+        return SimState(
+            time=self._physics_steps * self.config.physics_dt,
+            pose=self._pose,
+            velocity=velocity,
+            scan=scan,
+            clearance=clearance,
+            collided=clearance < 0.0,
+            first_collision_time=self._first_collision,
+            min_clearance=min_clearance,
+            command=command,
+            steps=self._steps,
+        )
+
+    # ------------------------------------------------------------------ lifetime
+
+    def _check_open(self) -> None:
+        if not self._finalizer.alive:
+            raise SimulatorError("BulletSim is closed")
+
+    def close(self) -> None:
+        """Disconnect from PyBullet; safe to call twice."""
+        self._finalizer()
+
+    def __enter__(self) -> BulletSim:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        status = "closed" if self.closed else f"t={self._state.time:.3f} s" if self._state else "not reset"
+        return f"BulletSim(world={self.world.name!r}, robot={self.robot.name!r}, {status})"

@@ -1,0 +1,452 @@
+import math
+
+import numpy as np
+import pytest
+
+from safenav import PRESET_NAMES, InvalidCommand, InvalidCommandType, InvalidConfig, Pose2D, preset
+from safenav.sim_bullet import BulletSim, SimConfig, SimulatorError, obstacle_mesh
+from safenav.synthetic import Circle, Scene, cast, synthetic_scan
+from safenav.worlds import START_CLEARANCE, WALL_THICKNESS, Box, Cylinder, Wall, World, random_world, tutorial_world
+
+pytestmark = pytest.mark.sim
+
+EXACT = SimConfig(range_noise=0.0)   # the m2wr preset has 1 cm of lidar noise; truth tests switch it off
+
+
+def wall_ahead(pose: Pose2D, distance: float, length: float = 6.0) -> Wall:
+    """A wall whose near face is ``distance`` ahead of ``pose``, perpendicular to its heading."""
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    centre = distance + 0.5 * WALL_THICKNESS
+    cx, cy = pose.x + centre * c, pose.y + centre * s
+    return Wall((cx + 0.5 * length * s, cy - 0.5 * length * c), (cx - 0.5 * length * s, cy + 0.5 * length * c))
+
+
+# ---------------------------------------------------------------------------------------------- lidar truth
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_a_wall_ahead_reads_its_distance_on_the_front_beam(name):
+    robot = preset(name)
+    start = Pose2D(1.0, -2.0, 2.0)
+    sensor = start.compose(robot.lidar.mount)
+    world = World("wall", (wall_ahead(Pose2D(sensor.x, sensor.y, start.yaw), 2.0),), start=start)
+    with BulletSim(world, robot, EXACT) as sim:
+        scan = sim.reset().scan
+    front = scan.beam_index(0.0)
+    assert scan.ranges[front] == pytest.approx(2.0, abs=0.01)
+    assert scan.ranges[front] == pytest.approx(2.0, abs=1e-4)   # walls are exact; Bullet's hit fraction is float32
+    assert np.nanargmin(np.where(np.isfinite(scan.ranges), scan.ranges, np.inf)) in (front - 1, front, front + 1)
+    assert scan.mount == robot.lidar.mount and scan.stamp == 0.0
+    assert (scan.angle_min, scan.n_beams) == (robot.lidar.angle_min, robot.lidar.n_beams)
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_a_box_to_the_left_appears_at_plus_ninety_degrees(name):
+    robot = preset(name)
+    start = Pose2D(-1.0, 0.5, -0.7)
+    sensor = start.compose(robot.lidar.mount)
+    left = Pose2D(sensor.x, sensor.y, start.yaw).compose(Pose2D(0.0, 1.5, 0.0))   # 1.5 m left of the lidar
+    world = World("box", (Box((left.x, left.y), (0.4, 0.4), yaw=start.yaw),), start=start)
+    with BulletSim(world, robot, EXACT) as sim:
+        scan = sim.reset().scan
+    assert scan.ranges[scan.beam_index(math.pi / 2)] == pytest.approx(1.3, abs=0.01)
+    seen = np.flatnonzero(np.isfinite(scan.ranges))
+    directions = scan.base_angles[seen]
+    assert np.all(np.abs(directions - math.pi / 2) < math.atan2(0.2, 1.3) + scan.angle_increment)
+    assert scan.ranges[scan.beam_index(-math.pi / 2)] == math.inf
+    assert scan.ranges[scan.beam_index(0.0)] == math.inf
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_nothing_in_range_reads_plus_infinity(name):
+    robot = preset(name)
+    far = World("far", (wall_ahead(Pose2D(), robot.lidar.range_max + 1.0),))
+    for world in (World("empty", ()), far):
+        with BulletSim(world, robot, EXACT) as sim:
+            scan = sim.reset().scan
+        assert np.all(scan.ranges == math.inf)
+
+
+def test_objects_closer_than_range_min_read_minus_infinity():
+    robot = preset("rosbot")   # range_min 0.15 m
+    world = World("close", (wall_ahead(Pose2D(), 0.1),))
+    with BulletSim(world, robot, EXACT) as sim:
+        state = sim.reset()
+    assert state.scan.ranges[state.scan.beam_index(0.0)] == -math.inf
+    assert state.collided   # 0.1 m is inside the body disk
+
+
+def test_a_sensor_inside_an_obstacle_reads_minus_infinity_everywhere():
+    world = World("inside", (Box((0.0, 0.0), (2.0, 2.0)),))
+    with BulletSim(world, preset("puzzlebot"), EXACT) as sim:
+        assert np.all(sim.reset().scan.ranges == -math.inf)
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_bullet_scans_match_the_analytic_ray_caster_in_random_worlds(name):
+    """Walls and boxes are exact; a cylinder is seen as its polygon, between the circle and the circle + tolerance."""
+    robot = preset(name)
+    world = random_world(3, robot, corridors=1, n_obstacles=20)
+    tolerance = EXACT.cylinder_tolerance
+    fat = Scene(world.scene().segments, tuple(Circle(c.center, c.radius + tolerance) for c in world.scene().circles))
+    rng = np.random.default_rng(0)
+    checked = 0
+    with BulletSim(world, robot, EXACT) as sim:
+        sim.reset()
+        while checked < 8:
+            pose = Pose2D(*rng.uniform(-4.5, 4.5, 2), rng.uniform(-math.pi, math.pi))
+            if world.clearance(pose, robot.radius) < 0.0:
+                continue
+            checked += 1
+            scan = sim.scan(pose)
+            exact = synthetic_scan(robot, world.scene(), pose).ranges
+            sensor = pose.compose(robot.lidar.mount)
+            inflated = cast((sensor.x, sensor.y), scan.angles + sensor.yaw, fat)
+            inflated[inflated > robot.lidar.range_max] = math.inf
+            finite = np.isfinite(exact)
+            assert np.array_equal(np.isfinite(scan.ranges) | ~finite, np.ones_like(finite))
+            # Bullet's hit fraction is a float32: 1e-5 m covers it over 30 m rays.
+            assert np.all(scan.ranges[finite] <= exact[finite] + 1e-5)          # never long
+            assert np.all(scan.ranges[finite] >= inflated[finite] - 1e-5)       # at most the polygon's excess
+            assert np.median(np.abs(scan.ranges[finite] - exact[finite])) < 1e-5
+
+
+def test_mount_yaw_error_turns_the_world_in_the_reported_scan():
+    robot = preset("puzzlebot")
+    world = World("wall", (wall_ahead(Pose2D(), 1.0),))
+    with BulletSim(world, robot, SimConfig(range_noise=0.0, mount_yaw_error=0.1)) as sim:
+        scan = sim.reset().scan
+    nearest = int(np.argmin(np.where(np.isfinite(scan.ranges), scan.ranges, np.inf)))
+    assert scan.base_angles[nearest] == pytest.approx(-0.1, abs=scan.angle_increment)
+    assert scan.mount == robot.lidar.mount   # the scan reports the nominal mount
+
+
+def test_range_noise_and_dropout_follow_the_config():
+    robot = preset("rosbot")
+    world = World("room", tuple(wall_ahead(Pose2D(0, 0, yaw), 2.0, 5.0) for yaw in np.arange(4) * math.pi / 2))
+    config = SimConfig(range_noise=0.02, dropout=0.1)
+    with BulletSim(world, robot, config, seed=1) as noisy, BulletSim(world, robot, EXACT) as exact:
+        truth = exact.reset().scan.ranges
+        scans = [noisy.reset().scan.ranges] + [noisy.step((0.0, 0.0)).scan.ranges for _ in range(4)]
+    readings = np.concatenate(scans)
+    dropped = np.isnan(readings)
+    assert 0.07 < dropped.mean() < 0.13
+    residual = (readings - np.tile(truth, 5))[~dropped]
+    assert abs(np.mean(residual)) < 0.003
+    assert np.std(residual) == pytest.approx(0.02, rel=0.1)
+    assert not np.array_equal(scans[0], scans[1], equal_nan=True)
+
+
+def test_preset_noise_is_the_default():
+    robot = preset("m2wr")   # 1 cm Gaussian noise in its tutorial model
+    world = World("wall", (wall_ahead(Pose2D(), 3.0, 20.0),))
+    with BulletSim(world, robot, seed=0) as sim:
+        scan = sim.reset().scan
+    front = scan.ranges[scan.sector_mask(-0.3, 0.3)]
+    truth = 2.85 / np.cos(scan.base_angles[scan.sector_mask(-0.3, 0.3)])
+    assert np.std(front - truth) == pytest.approx(0.01, rel=0.3)
+
+
+# ---------------------------------------------------------------------------------------------- clearance truth
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_clearance_to_a_wall_at_a_known_distance(name):
+    robot = preset(name)
+    start = Pose2D(0.5, 0.3, 0.4)
+    distance = 0.7
+    world = World("wall", (wall_ahead(start, robot.radius + distance),), start=start)
+    with BulletSim(world, robot, EXACT) as sim:
+        state = sim.reset()
+        assert state.clearance == pytest.approx(distance, abs=1e-9)
+        assert sim.bullet_clearance() == pytest.approx(distance, abs=0.01)
+        assert not state.collided and state.first_collision_time is None
+
+
+def test_analytic_clearance_agrees_with_bullet_closest_points():
+    robot = preset("rosbot")
+    world = random_world(5, robot, corridors=1)
+    rng = np.random.default_rng(1)
+    tolerance = EXACT.cylinder_tolerance
+    compared = 0
+    with BulletSim(world, robot, EXACT) as sim:
+        sim.reset()
+        for _ in range(200):
+            pose = Pose2D(*rng.uniform(-5.0, 5.0, 2), 0.0)
+            truth = world.clearance(pose, robot.radius)
+            if not -0.1 < truth < 1.0:
+                continue
+            compared += 1
+            bullet = sim.bullet_clearance(pose)
+            # The polygon of a cylinder is up to `tolerance` larger than the circle.
+            assert truth - tolerance - 2e-3 <= bullet <= truth + 2e-3
+    assert compared > 20
+
+
+def test_driving_into_a_wall_raises_the_collision_flag_at_the_right_time():
+    robot = preset("rosbot")
+    world = tutorial_world("stop_at_wall")   # wall face 3 m ahead
+    with BulletSim(world, robot, EXACT) as sim:
+        state = sim.reset()
+        states = [sim.step((0.5, 0.0)) for _ in range(140)]   # 7 s
+    first = next(s for s in states if s.collided)
+    # Accelerate to 0.5 m/s at 1.5 m/s^2, then cruise: contact after 3 - R m.
+    ramp = 0.5 / robot.a_max
+    expected = ramp + (3.0 - robot.radius - 0.5 * 0.5 * ramp) / 0.5
+    assert first.first_collision_time == pytest.approx(expected, abs=0.02)
+    assert first.min_clearance < 0.0 and state.clearance > 0.0
+    # Contacts are recorded, not resolved: the robot passes through and the first time stays.
+    assert not states[-1].collided and states[-1].pose.x > 3.2
+    assert states[-1].first_collision_time == first.first_collision_time
+
+
+def test_a_robot_far_from_everything_never_collides():
+    robot = preset("m2wr")
+    world = World("far", (Wall((-10.0, 10.0), (10.0, 10.0)), Cylinder((8.0, -8.0), 1.0)))
+    with BulletSim(world, robot, SimConfig(actuation_noise=0.1), seed=0) as sim:
+        sim.reset()
+        states = [sim.step((0.8, 1.0)) for _ in range(200)]
+    assert not any(s.collided for s in states)
+    assert all(s.first_collision_time is None for s in states)
+    assert min(s.min_clearance for s in states) > 5.0
+
+
+def test_random_worlds_start_collision_free_in_the_simulator():
+    robot = preset("rosbot")
+    for seed in range(3):
+        with BulletSim(random_world(seed, robot, goal=True), robot, EXACT) as sim:
+            state = sim.reset()
+            assert not state.collided and state.clearance >= START_CLEARANCE - 1e-9
+            assert sim.bullet_clearance() >= START_CLEARANCE - 1e-2
+
+
+# ---------------------------------------------------------------------------------------------- kinematics
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_commands_are_reached_no_faster_than_the_acceleration_limits(name):
+    robot = preset(name)
+    config = SimConfig(control_dt=0.05, physics_dt=0.01, range_noise=0.0)
+    with BulletSim(World("empty", ()), robot, config) as sim:
+        previous = sim.reset().velocity
+        target = np.array([robot.v_max, robot.omega_max])
+        history = []
+        for _ in range(60):
+            state = sim.step(10.0 * target)   # beyond the limits: clipped
+            change = np.abs(state.velocity - previous)
+            assert np.all(change <= np.array([robot.a_max, robot.alpha_max]) * config.control_dt + 1e-12)
+            assert np.all(np.abs(state.velocity) <= target + 1e-12)
+            np.testing.assert_allclose(state.command, target)
+            history.append(state.velocity)
+            previous = state.velocity
+    history = np.array(history)
+    for axis, limit in ((0, robot.a_max), (1, robot.alpha_max)):
+        reached = np.flatnonzero(np.isclose(history[:, axis], target[axis]))[0]
+        # Full speed within one physics step of the fastest possible time, not earlier.
+        assert (reached + 1) * config.control_dt >= target[axis] / limit - 1e-9
+        assert (reached + 1) * config.control_dt <= target[axis] / limit + config.control_dt + 1e-9
+
+
+def test_a_straight_run_covers_v_times_t():
+    robot = preset("rosbot")
+    with BulletSim(World("empty", ()), robot, EXACT) as sim:
+        sim.reset()
+        for _ in range(20):   # 1 s: well past the 1/3 s ramp
+            state = sim.step((0.5, 0.0))
+        start = state.pose
+        for _ in range(40):
+            state = sim.step((0.5, 0.0))
+    assert state.pose.x - start.x == pytest.approx(0.5 * 2.0, abs=1e-9)
+    assert state.pose.y == pytest.approx(0.0, abs=1e-12) and state.pose.yaw == 0.0
+
+
+@pytest.mark.parametrize("v", [0.0, 0.3])
+def test_a_full_turn_returns_to_the_start_heading(v):
+    robot = preset("puzzlebot")
+    omega = 2.0 * math.pi / 5.0   # one turn in exactly 100 control periods of 0.05 s
+    with BulletSim(World("empty", (), start=Pose2D(1.0, 2.0, 0.5)), robot, EXACT) as sim:
+        sim.reset()
+        for _ in range(40):
+            state = sim.step((v, omega))
+        start = state.pose
+        halfway = None
+        for k in range(100):
+            state = sim.step((v, omega))
+            if k == 49:
+                halfway = state.pose
+    assert math.remainder(state.pose.yaw - start.yaw, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    assert (state.pose.x, state.pose.y) == pytest.approx((start.x, start.y), abs=1e-9)
+    assert abs(math.remainder(halfway.yaw - start.yaw, 2 * math.pi)) == pytest.approx(math.pi, abs=1e-9)
+    if v > 0:   # a circle of radius v / omega: half way round it is one diameter away
+        assert math.dist(halfway[:2], start[:2]) == pytest.approx(2 * v / omega, abs=1e-9)
+
+
+def test_time_and_steps_follow_the_control_period():
+    with BulletSim(World("empty", ()), preset("rosbot"), SimConfig(control_dt=0.1, physics_dt=0.02)) as sim:
+        sim.reset()
+        for _ in range(7):
+            state = sim.step((0.1, 0.0))
+    assert state.time == pytest.approx(0.7, abs=1e-12) and state.steps == 7
+    assert state.scan.stamp == state.time
+
+
+# ---------------------------------------------------------------------------------------------- latency and noise
+
+
+def test_command_latency_delays_execution_by_whole_periods():
+    with BulletSim(World("empty", ()), preset("rosbot"), SimConfig(command_latency=2)) as sim:
+        sim.reset()
+        first = sim.step((0.5, 0.0))
+        second = sim.step((0.2, 0.0))
+        third = sim.step((0.0, 0.0))
+    np.testing.assert_array_equal(first.command, [0.0, 0.0])
+    np.testing.assert_array_equal(first.velocity, [0.0, 0.0])
+    np.testing.assert_array_equal(second.command, [0.0, 0.0])
+    np.testing.assert_array_equal(third.command, [0.5, 0.0])
+    assert third.velocity[0] > 0.0 and second.pose == Pose2D(0.0, 0.0, 0.0)
+
+
+def test_scan_latency_delivers_old_scans_with_their_acquisition_stamp():
+    robot = preset("rosbot")
+    world = tutorial_world("stop_at_wall")
+    with BulletSim(world, robot, SimConfig(scan_latency=2, range_noise=0.0)) as sim, \
+            BulletSim(world, robot, EXACT) as prompt:
+        delayed = [sim.reset()] + [sim.step((0.5, 0.0)) for _ in range(5)]
+        fresh = [prompt.reset()] + [prompt.step((0.5, 0.0)) for _ in range(5)]
+    assert [s.scan.stamp for s in delayed] == pytest.approx([0.0, 0.0, 0.0, 0.05, 0.10, 0.15])
+    for k in range(2, 6):
+        np.testing.assert_array_equal(delayed[k].scan.ranges, fresh[k - 2].scan.ranges)
+        assert delayed[k].pose == fresh[k].pose   # only the scan is late
+
+
+def test_actuation_noise_is_relative_and_seeded():
+    robot = preset("rosbot")
+    config = SimConfig(actuation_noise=0.1, range_noise=0.0)
+
+    def run(seed):
+        with BulletSim(World("empty", ()), robot, config, seed=seed) as sim:
+            sim.reset()
+            still = [sim.step((0.0, 0.0)) for _ in range(5)]
+            moving = [sim.step((0.5, 0.5)) for _ in range(40)]
+        return still, moving
+
+    still, moving = run(3)
+    assert all(s.pose == Pose2D() and not s.velocity.any() for s in still)   # no drift at rest
+    ratios = np.array([s.velocity / s.command for s in moving[20:]])
+    assert 0.03 < np.std(ratios[:, 0]) < 0.2 and 0.03 < np.std(ratios[:, 1]) < 0.2
+    assert [s.pose for s in run(3)[1]] == [s.pose for s in moving]
+    assert [s.pose for s in run(4)[1]] != [s.pose for s in moving]
+
+
+# ---------------------------------------------------------------------------------------------- determinism
+
+
+def _episode(world: World, seed: int) -> tuple[list[Pose2D], list[np.ndarray]]:
+    robot = preset("m2wr")
+    config = SimConfig(dropout=0.05, actuation_noise=0.05, command_latency=1, scan_latency=1)
+    with BulletSim(world, robot, config, seed=seed) as sim:
+        states = [sim.reset()] + [sim.step((0.4, 0.3 * math.sin(0.1 * k))) for k in range(30)]
+    return [s.pose for s in states], [s.scan.ranges for s in states]
+
+
+def test_same_seed_same_scans_and_poses_different_seed_different_noise():
+    world = random_world(2, preset("m2wr"), n_obstacles=15)
+    poses_a, scans_a = _episode(world, 7)
+    poses_b, scans_b = _episode(world, 7)
+    poses_c, scans_c = _episode(world, 8)
+    assert poses_a == poses_b
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(scans_a, scans_b, strict=True))
+    assert poses_a != poses_c
+    assert not all(np.array_equal(a, c, equal_nan=True) for a, c in zip(scans_a, scans_c, strict=True))
+
+
+def test_reset_with_a_seed_replays_the_episode():
+    robot = preset("rosbot")
+    with BulletSim(tutorial_world("stop_at_wall"), robot, SimConfig(range_noise=0.01, dropout=0.1)) as sim:
+        first = [sim.reset(seed=5).scan.ranges] + [sim.step((0.3, 0.1)).scan.ranges for _ in range(3)]
+        other = [sim.reset().scan.ranges] + [sim.step((0.3, 0.1)).scan.ranges for _ in range(3)]
+        again = [sim.reset(seed=5).scan.ranges] + [sim.step((0.3, 0.1)).scan.ranges for _ in range(3)]
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(first, again, strict=True))
+    assert not np.array_equal(first[0], other[0], equal_nan=True)
+
+
+def test_reset_at_another_start():
+    robot = preset("puzzlebot")
+    world = tutorial_world("obstacle_avoidance")
+    with BulletSim(world, robot, EXACT) as sim:
+        sim.reset()
+        sim.step((0.3, 0.0))
+        state = sim.reset(start=(0.0, -0.6, math.pi / 2))   # facing the middle post, 0.25 m from it
+    assert state.time == 0.0 and state.steps == 0 and not state.velocity.any()
+    assert state.clearance == pytest.approx(0.25 - robot.radius)
+    assert state.scan.ranges[state.scan.beam_index(0.0)] == pytest.approx(0.25, abs=1e-3)
+
+
+# ---------------------------------------------------------------------------------------------- mesh, config, errors
+
+
+def test_obstacle_mesh_is_closed_prisms_of_the_world():
+    world = World("w", (Box((0, 0), (1, 2)), Cylinder((3, 0), 0.5), Wall((0, 3), (2, 3))), obstacle_height=0.4)
+    vertices, triangles = obstacle_mesh(world, tolerance=0.002, caps=True)
+    sides, _ = obstacle_mesh(world, tolerance=0.002)
+    n_cylinder = len(Cylinder((3, 0), 0.5).polygon(0.002))
+    assert len(vertices) == len(sides) == 2 * (4 + n_cylinder + 4)
+    assert len(triangles) == 2 * (4 + n_cylinder + 4) + 2 * (2 + (n_cylinder - 2) + 2)
+    assert set(np.unique(vertices[:, 2])) == {0.0, 0.4}
+    assert triangles.min() == 0 and triangles.max() == len(vertices) - 1
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)   # watertight: every edge is shared by two triangles
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"control_dt": 0.05, "physics_dt": 0.02}, "whole multiple"),
+        ({"control_dt": 0.01, "physics_dt": 0.02}, "whole multiple"),
+        ({"physics_dt": 0.0}, "physics_dt"),
+        ({"range_noise": -0.01}, "range_noise"),
+        ({"dropout": 1.0}, "dropout"),
+        ({"actuation_noise": math.nan}, "actuation_noise"),
+        ({"command_latency": -1}, "command_latency"),
+        ({"scan_latency": 1.5}, "scan_latency"),
+        ({"mount_yaw_error": 4.0}, "mount_yaw_error"),
+        ({"gui": "yes"}, "gui"),
+        ({"num_threads": -1}, "num_threads"),
+        ({"cylinder_tolerance": 0.0}, "cylinder_tolerance"),
+    ],
+)
+def test_bad_sim_config_is_rejected(kwargs, message):
+    with pytest.raises(InvalidConfig, match=message):
+        SimConfig(**kwargs)
+
+
+def test_sim_config_substeps():
+    assert SimConfig().substeps == 5
+    assert SimConfig(control_dt=0.1, physics_dt=0.1 / 3).substeps == 3
+
+
+def test_simulator_usage_errors():
+    robot = preset("rosbot")
+    with pytest.raises(InvalidConfig, match="above the obstacles"):
+        BulletSim(World("low", (), obstacle_height=0.1), robot)
+    with pytest.raises(InvalidConfig, match="World"):
+        BulletSim("stop_at_wall", robot)
+    sim = BulletSim(World("empty", ()), robot)
+    with pytest.raises(SimulatorError, match="reset"):
+        sim.step((0.0, 0.0))
+    with pytest.raises(SimulatorError, match="reset"):
+        _ = sim.state
+    sim.reset()
+    with pytest.raises(InvalidCommand, match="finite"):
+        sim.step((math.nan, 0.0))
+    with pytest.raises(InvalidCommandType):
+        sim.step("forward")
+    with pytest.raises(InvalidCommand):
+        sim.step((1.0, 2.0, 3.0))
+    assert "t=0.000" in repr(sim)
+    sim.close()
+    sim.close()
+    assert sim.closed and "closed" in repr(sim)
+    with pytest.raises(SimulatorError, match="closed"):
+        sim.step((0.0, 0.0))
