@@ -23,18 +23,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from safenav.errors import InvalidConfig
-from safenav.filters.base import FilterStatus, SafetyFilter
+from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
 from safenav.geometry import Pose2D
 from safenav.reference.base import Policy
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
-from safenav.sim_bullet import BulletSim, SimConfig
+from safenav.sim_bullet import BulletSim, SimConfig, SimState
 from safenav.worlds import World
 
 __all__ = ["EpisodeConfig", "EpisodeMetrics", "Trajectory", "EpisodeResult", "run_episode"]
@@ -179,6 +180,7 @@ def run_episode(
     seed: int = 0,
     record: bool = False,
     record_scans: bool = False,
+    callback: Callable[[int, SimState, FilterResult | None], None] | None = None,
 ) -> EpisodeResult:
     """Run one episode and measure it.
 
@@ -195,6 +197,9 @@ def run_episode(
         seed: seed of everything random in the episode.
         record: also return the per-step :class:`Trajectory`.
         record_scans: keep the scans in the trajectory too (for animations).
+        callback: called after every period with the step index, the new simulator state
+            and the filter's result (``None`` without a filter); for logging, live plots or
+            soak measurements.
 
     Raises:
         InvalidConfig: the filter's period differs from the control period.
@@ -221,11 +226,13 @@ def run_episode(
         for _ in range(config.steps):
             scan = state.scan
             u_nom = np.asarray(policy(scan, state.pose), dtype=float)
+            result = None
             if safety_filter is None:
                 u, status = u_nom, "none"
             else:
                 start = time.perf_counter()
-                result = safety_filter.filter(u_nom, scan, velocity=state.velocity if config.give_velocity else None)
+                result = safety_filter.filter(u_nom, scan, velocity=state.velocity if config.give_velocity else None,
+                                              now=state.time)
                 filter_times.append(time.perf_counter() - start)
                 u, status = result.u, result.status.value
             statuses[status] = statuses.get(status, 0) + 1
@@ -244,6 +251,8 @@ def run_episode(
             policy_log.append(policy.state)
             if record_scans:
                 scan_log.append(scan)
+            if callback is not None:
+                callback(len(command_log) - 1, state, result)
             if goal is not None and time_to_goal is None and _distance(state.pose, goal) <= config.goal_tolerance:
                 time_to_goal = state.time
             if config.stop_on_collision and state.first_collision_time is not None:

@@ -31,6 +31,11 @@ class Pose2D(NamedTuple):
             wrap_angle(self.yaw + other.yaw),
         )
 
+    def inverse(self) -> Pose2D:
+        """The pose of the parent frame expressed in this pose's frame."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return Pose2D(-c * self.x - s * self.y, s * self.x - c * self.y, wrap_angle(-self.yaw))
+
     def to_local(self, points: np.ndarray) -> np.ndarray:
         """Points ``(N, 2)`` in the parent frame [m], expressed in this pose's frame [m]."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)

@@ -236,3 +236,32 @@ def test_from_msg_raises_only_documented_errors_and_what_it_accepts_filters_safe
     result = CBFSafetyFilter(robot, DT).filter(u_nom, scan)
     assert np.all(np.isfinite(result.u))
     assert np.all(result.u >= robot.lower - 1e-9) and np.all(result.u <= robot.upper + 1e-9)
+
+
+# ------------------------------------------------------------------ latency compensation
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_an_old_scan_is_moved_into_the_current_frame(make):
+    robot = preset("rosbot")
+    filt = make(robot)
+    scan = synthetic_scan(robot, Scene.of(wall(1.0)))
+    fresh = filt.filter((0.0, 0.0), scan, velocity=(0.0, 0.0))
+    late = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0), scan_age=0.2)   # 0.2 m closer by now
+    assert fresh.clearance == pytest.approx(1.0 - robot.radius, abs=1e-9)
+    assert late.clearance == pytest.approx(0.8 - robot.radius, abs=1e-9)
+
+
+def test_current_frame_turns_the_scan_with_the_base():
+    robot = preset("puzzlebot")
+    scan = synthetic_scan(robot, Scene.of(wall(1.0)))
+    turned = CBFSafetyFilter.current_frame(scan, np.array([0.0, math.pi / 2]), 1.0)   # a quarter turn left
+    points = turned.points()
+    assert np.allclose(points[:, 1], -1.0, atol=1e-9)   # the wall that was ahead is now on the right
+
+
+def test_latency_compensation_can_be_switched_off():
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT, compensate_latency=False)
+    scan = synthetic_scan(robot, Scene.of(wall(1.0)))
+    result = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0), scan_age=0.2)
+    assert result.clearance == pytest.approx(1.0 - robot.radius, abs=1e-9)

@@ -62,3 +62,11 @@ def test_pose_frames_round_trip():
     points = np.array([[0.0, 0.0], [1.0, 2.0], [-3.0, 0.5]])
     assert np.allclose(pose.to_local(pose.to_parent(points)), points)
     assert pose.compose(Pose2D(1.0, 0.0, 0.0))[:2] == pytest.approx((1.0 + math.cos(0.7), -2.0 + math.sin(0.7)))
+
+
+@given(finite, finite, st.floats(-10, 10))
+def test_inverse_composes_to_identity(x, y, yaw):
+    pose = Pose2D(x, y, yaw)
+    identity = pose.compose(pose.inverse())
+    assert identity.x == pytest.approx(0.0, abs=1e-9) and identity.y == pytest.approx(0.0, abs=1e-9)
+    assert wrap_angle(identity.yaw) == pytest.approx(0.0, abs=1e-9)

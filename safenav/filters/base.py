@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from safenav.errors import InvalidConfig, InvalidScanType
+from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
@@ -149,16 +150,22 @@ class SafetyFilter(abc.ABC):
         robot: the robot whose body and limits the filter protects.
         dt: control period [s]: how long each returned command is held.
         scan_timeout: largest scan age [s] the filter acts on; older scans make it brake.
+        compensate_latency: move a scan of known age into the current base frame using the
+            measured velocity before filtering.
     """
 
     name = "filter"
 
-    def __init__(self, robot: RobotSpec, dt: float, *, scan_timeout: float = 0.5) -> None:
+    def __init__(self, robot: RobotSpec, dt: float, *, scan_timeout: float = 0.5,
+                 compensate_latency: bool = True) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
+        if not isinstance(compensate_latency, bool):
+            raise InvalidConfig(f"compensate_latency must be True or False, got {compensate_latency!r}")
         self.robot = robot
         self.dt = check_period("dt", dt)
         self.scan_timeout = check_period("scan_timeout", scan_timeout)
+        self.compensate_latency = compensate_latency
 
     def reset(self) -> None:
         """Forget warm-start state (call between episodes)."""
@@ -182,7 +189,9 @@ class SafetyFilter(abc.ABC):
             scan: the latest scan, in the robot's current base frame.
             velocity: current ``(v [m/s], omega [rad/s])``; when given, the returned command is
                 reachable within one period under the acceleration limits.
-            scan_age: how old the scan is [s]; past ``scan_timeout`` the filter brakes.
+            scan_age: how old the scan is [s]; past ``scan_timeout`` the filter brakes. With
+                ``velocity`` given (and ``compensate_latency``), the scan is first moved into the
+                current base frame by the motion since it was taken (:meth:`current_frame`).
             now: the current time [s]; with ``scan.stamp`` it gives the age when ``scan_age`` is ``None``.
 
         Returns:
@@ -215,12 +224,26 @@ class SafetyFilter(abc.ABC):
         if scan.n_informative == 0:
             return self._brake(nominal, current, FilterStatus.NO_DATA,
                                f"none of the {scan.n_beams} beams is informative (all NaN or out of range)", start)
+        if self.compensate_latency and current is not None and scan_age is not None and scan_age > 0.0:
+            scan = self.current_frame(scan, current, scan_age)
         result = self._filter(nominal, scan, current)
         if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
             return self._brake(nominal, current, FilterStatus.FALLBACK,
                                f"filter produced a non-finite command {result.u.tolist()}", start)
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
+
+    @staticmethod
+    def current_frame(scan: LaserScan, velocity: np.ndarray, scan_age: float) -> LaserScan:
+        """The scan re-expressed in the current base frame, ``scan_age`` [s] after it was taken.
+
+        Assumes the base held ``velocity`` ``(v [m/s], omega [rad/s])`` since then (the world
+        is static): the base has moved by the exact arc ``unicycle_step(0, v, omega, age)``,
+        so the laser now sits at the inverse of that motion composed with its mount. Only
+        the mount pose changes; the readings are untouched.
+        """
+        moved = unicycle_step(Pose2D(), float(velocity[0]), float(velocity[1]), scan_age)
+        return scan.replace(mount=moved.inverse().compose(scan.mount))
 
     def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, message: str,
                start: float, **details: Any) -> FilterResult:

@@ -13,7 +13,7 @@ import qpsolvers
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
 from safenav.filters.qp import QPBackend, QPData, make_backend
-from safenav.filters.reduction import BlockedMotion, blocked_motion, nearest_per_bin
+from safenav.filters.reduction import BlockedMotion, blocked_motion, nearest_per_bin, obstacle_beams
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -66,6 +66,8 @@ class CBFConfig:
         slack_weight: quadratic cost on the relaxation of the rows (in m/s) when no command
             satisfies them all; with the linear cost of 1e3 it acts as an exact penalty [s^2/m^2].
         scan_timeout: scans older than this make the filter brake [s].
+        compensate_latency: move a scan of known age into the current base frame first
+            (see :meth:`SafetyFilter.current_frame`).
     """
 
     gamma: float | None = None
@@ -79,6 +81,7 @@ class CBFConfig:
     n_bins: int = 36
     slack_weight: float = 1e4
     scan_timeout: float = 0.5
+    compensate_latency: bool = True
 
     def __post_init__(self) -> None:
         if self.gamma is not None:
@@ -177,6 +180,12 @@ class CBFSafetyFilter(SafetyFilter):
     behind a front-mounted 180-degree lidar) is covered only by forbidding motion
     towards it.
 
+    **Readings closer than range_min** (``-inf``) put their point where the beam leaves
+    the body disk: the object may be touching, so the robot counts as inside its margin and
+    backs away until the lidar can measure the gap again. (A lidar whose ``range_min``
+    exceeds ``R + margin`` from the body cannot see the margin itself; with this rule the
+    robot keeps out of that blind ring instead.)
+
     **When it cannot hold.** If no command satisfies every row (the robot is already
     inside the margin, or moving too fast to stop before an obstacle or an unseen
     direction), a slack variable relaxes the barrier rows with a heavy penalty: the
@@ -205,7 +214,7 @@ class CBFSafetyFilter(SafetyFilter):
 
     def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: CBFConfig | None = None, **overrides: Any):
         config = CBFConfig(**{**(config.__dict__ if config else {}), **overrides})
-        super().__init__(robot, dt, scan_timeout=config.scan_timeout)
+        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=config.compensate_latency)
         self.config = config
         self.gamma = config.gamma if config.gamma is not None else min(1.0, robot.a_max * self.dt / robot.v_max)
         self.far_gamma = max(self.gamma, config.far_gamma if config.far_gamma is not None else 1.0)
@@ -236,7 +245,7 @@ class CBFSafetyFilter(SafetyFilter):
         before any trigonometry. The beams nearest the base origin and the look-ahead point
         are always kept, so the reported clearance and minimum barrier are exact.
         """
-        index, ranges = scan.obstacle_beams()
+        index, ranges = obstacle_beams(scan, self.robot.radius)
         if index.size == 0:
             return np.empty((0, 2))
         ell = self.lookahead

@@ -3,7 +3,8 @@
 Shared by the CBF and MPC filters:
 
 * :func:`obstacle_points` gives every obstacle point of a scan in the base frame
-  (REP-117: ``HIT`` at its range, ``TOO_CLOSE`` at ``range_min``).
+  (REP-117: ``HIT`` at its range; ``TOO_CLOSE`` as close as it can be without having
+  hit the body).
 * :func:`blocked_motion` finds the directions the scan says nothing about (outside
   the field of view, or a run of invalid beams wider than ``max_gap``) and turns them
   into "no forward motion" / "no reverse motion", because unknown is never free.
@@ -22,12 +23,40 @@ import numpy as np
 from safenav.geometry import TWO_PI
 from safenav.scan import LaserScan, Reading
 
-__all__ = ["obstacle_points", "BlockedMotion", "blocked_motion", "unknown_arcs", "nearest_per_bin"]
+__all__ = ["obstacle_beams", "obstacle_points", "BlockedMotion", "blocked_motion", "unknown_arcs", "nearest_per_bin"]
 
 
-def obstacle_points(scan: LaserScan) -> np.ndarray:
-    """Obstacle points of ``scan`` in the base frame, ``(N, 2)`` [m] (see :meth:`LaserScan.points`)."""
-    return scan.points()
+def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Beams that give an obstacle point, and the range to put it at [m], for a body of ``body_radius``.
+
+    ``HIT`` beams keep their range. A ``TOO_CLOSE`` beam (``-inf``) says an object is closer
+    than ``range_min``, maybe touching the body: it is put where the beam leaves the body
+    disk, or at ``range_min`` if that is nearer. A filter then sees the robot as inside its
+    margin and backs out of the lidar's blind zone instead of trusting a clearance it cannot
+    measure (a lidar whose ``range_min`` exceeds the body radius plus the margin cannot see
+    the margin).
+    """
+    index, ranges = scan.obstacle_beams()
+    too_close = scan.ranges[index] == -math.inf
+    if too_close.any():
+        geometry = scan.geometry
+        mx, my = scan.mount.x, scan.mount.y
+        cos, sin = geometry.cos_base[index[too_close]], geometry.sin_base[index[too_close]]
+        along = mx * cos + my * sin
+        inside = body_radius**2 - (mx * mx + my * my)
+        if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
+            exit_range = -along + np.sqrt(along**2 + inside)
+            ranges = ranges.copy()
+            ranges[too_close] = np.minimum(ranges[too_close], exit_range)
+    return index, ranges
+
+
+def obstacle_points(scan: LaserScan, body_radius: float) -> np.ndarray:
+    """Obstacle points of ``scan`` in the base frame, ``(N, 2)`` [m], as :func:`obstacle_beams` places them."""
+    index, ranges = obstacle_beams(scan, body_radius)
+    geometry = scan.geometry
+    return np.column_stack((scan.mount.x + ranges * geometry.cos_base[index],
+                            scan.mount.y + ranges * geometry.sin_base[index]))
 
 
 class BlockedMotion(NamedTuple):

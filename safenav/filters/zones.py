@@ -117,7 +117,7 @@ class ZonesFilter(SafetyFilter):
 
     def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: ZonesConfig | None = None, **overrides: Any):
         config = ZonesConfig(**{**(config.__dict__ if config else {}), **overrides})
-        super().__init__(robot, dt, scan_timeout=config.scan_timeout)
+        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=False)
         self.config = config
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)

@@ -1,0 +1,123 @@
+"""Soak: one long episode of a random walk through a safety filter in clutter.
+
+Checks what a long deployment needs: no collision, no solver failure, memory that does
+not grow (resident set size, and optionally Python allocations with tracemalloc), and
+per-step time that does not creep up (the median of the first and of the last thousand
+steps, after a warm-up). Run ``python -m benchmarks.soak --help``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import math
+import os
+import time
+import tracemalloc
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from benchmarks.common import markdown_table, write_json
+from safenav.episode import EpisodeConfig, run_episode
+from safenav.filters import make_filter
+from safenav.reference import RandomWalk
+from safenav.robot import preset
+from safenav.sim_bullet import SimConfig
+from safenav.worlds import random_world
+
+WINDOW = 1000
+"""Steps in each of the windows whose step times are compared."""
+
+
+def resident_bytes() -> int:
+    """Current resident set size of this process [bytes] (Linux ``/proc``; 0 elsewhere)."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = "cbf", seed: int = 0,
+         warmup: int = 500, trace_python: bool = False) -> dict[str, Any]:
+    """Run the soak and return its measurements.
+
+    Args:
+        steps: control periods in the episode.
+        robot_name: robot preset.
+        filter_name: filter name (see :func:`safenav.filters.make_filter`).
+        seed: seed of the world, the random walk and the simulator.
+        warmup: steps after which the memory baseline is taken.
+        trace_python: also track Python allocations with tracemalloc (slower).
+    """
+    if steps < warmup + 2 * WINDOW:
+        raise ValueError(f"steps={steps} must be at least warmup + 2 x {WINDOW} = {warmup + 2 * WINDOW}")
+    robot = preset(robot_name)
+    world = random_world(seed, robot, n_obstacles=30)
+    config = EpisodeConfig(duration=steps * 0.05, sim=SimConfig(control_dt=0.05))
+    safety_filter = make_filter(filter_name, robot, config.sim.control_dt)
+    step_times = np.zeros(steps)
+    memory: dict[str, float] = {}
+    clock = [time.perf_counter()]
+
+    def observe(index: int, state: Any, result: Any) -> None:
+        now = time.perf_counter()
+        step_times[index] = now - clock[0]
+        clock[0] = now
+        if index == warmup:
+            gc.collect()
+            memory["rss_start"] = resident_bytes()
+            if trace_python:
+                memory["python_start"] = tracemalloc.get_traced_memory()[0]
+
+    if trace_python:
+        tracemalloc.start()
+    start = time.perf_counter()
+    metrics = run_episode(world, robot, RandomWalk(robot, hold_steps=20), safety_filter, config=config,
+                          seed=seed, callback=observe).metrics
+    wall = time.perf_counter() - start
+    gc.collect()
+    memory["rss_end"] = resident_bytes()
+    if trace_python:
+        memory["python_end"] = tracemalloc.get_traced_memory()[0]
+        tracemalloc.stop()
+    done = metrics.steps
+    first = step_times[warmup:warmup + WINDOW]
+    last = step_times[done - WINDOW:done]
+    return {
+        "robot": robot_name, "filter": filter_name, "seed": seed, "steps": done, "wall_s": wall,
+        "collided": metrics.collided, "collision_time": metrics.collision_time,
+        "min_clearance": metrics.min_clearance, "margin": getattr(safety_filter, "margin", math.nan),
+        "fallbacks": metrics.fallbacks, "statuses": metrics.statuses, "distance": metrics.distance,
+        "first_window_median_us": float(np.median(first) * 1e6), "last_window_median_us": float(np.median(last) * 1e6),
+        "first_window_p99_us": float(np.percentile(first, 99) * 1e6),
+        "last_window_p99_us": float(np.percentile(last, 99) * 1e6),
+        "filter_p50_us": metrics.filter_p50_us, "filter_p99_us": metrics.filter_p99_us,
+        "rss_start_mb": memory["rss_start"] / 2**20, "rss_end_mb": memory["rss_end"] / 2**20,
+        **({"python_start_mb": memory["python_start"] / 2**20, "python_end_mb": memory["python_end"] / 2**20}
+           if trace_python else {}),
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="soak", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=20_000, help="control periods (default: 20000)")
+    parser.add_argument("--robot", default="rosbot", help="robot preset (default: rosbot)")
+    parser.add_argument("--filter", default="cbf", help="filter (default: cbf)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--tracemalloc", action="store_true", help="also track Python allocations (slower)")
+    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
+    args = parser.parse_args(argv)
+    result = soak(args.steps, robot_name=args.robot, filter_name=args.filter, seed=args.seed,
+                  trace_python=args.tracemalloc)
+    rows = [[key, value if not isinstance(value, float) else round(value, 4)] for key, value in result.items()]
+    print(markdown_table(["measure", "value"], rows))
+    write_json(args.json, {"soak": result, "config": vars(args)})
+    return 0 if not result["collided"] and result["fallbacks"] == 0 else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
