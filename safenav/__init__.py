@@ -23,6 +23,7 @@ from safenav.scan import LaserScan, Reading, SectorReading, SectorState
 __version__ = "0.1.0"
 
 __all__ = [
+    "PRESET_NAMES",
     "Command",
     "InvalidCommand",
     "InvalidCommandType",
@@ -32,7 +33,6 @@ __all__ = [
     "LaserScan",
     "LidarSpec",
     "MissingDependency",
-    "PRESET_NAMES",
     "Pose2D",
     "Reading",
     "RobotSpec",

@@ -38,7 +38,7 @@ from safenav.scan import LaserScan
 from safenav.sim_bullet import BulletSim, SimConfig, SimState
 from safenav.worlds import World
 
-__all__ = ["EpisodeConfig", "EpisodeMetrics", "Trajectory", "EpisodeResult", "run_episode"]
+__all__ = ["EpisodeConfig", "EpisodeMetrics", "EpisodeResult", "Trajectory", "run_episode"]
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class EpisodeConfig:
     @property
     def steps(self) -> int:
         """Control periods in a full-length episode."""
-        return int(round(self.duration / self.sim.control_dt))
+        return round(self.duration / self.sim.control_dt)
 
     def replace(self, **changes: Any) -> EpisodeConfig:
         """A copy with some fields changed (validated)."""

@@ -16,15 +16,15 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 __all__ = [
-    "SafeNavError",
-    "InvalidScan",
-    "InvalidScanType",
     "InvalidCommand",
     "InvalidCommandType",
     "InvalidConfig",
-    "UnknownName",
+    "InvalidScan",
+    "InvalidScanType",
     "MissingDependency",
+    "SafeNavError",
     "SimulatorError",
+    "UnknownName",
 ]
 
 

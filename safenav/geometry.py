@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Pose2D", "wrap_angle", "unicycle_step", "unicycle_rollout"]
+__all__ = ["Pose2D", "unicycle_rollout", "unicycle_step", "wrap_angle"]
 
 TWO_PI = 2.0 * math.pi
 

@@ -31,7 +31,7 @@ from safenav.errors import InvalidCommand, InvalidCommandType, InvalidConfig, Un
 from safenav.geometry import Pose2D
 from safenav.scan import LaserScan
 
-__all__ = ["Command", "LidarSpec", "RobotSpec", "preset", "PRESET_NAMES", "as_command"]
+__all__ = ["PRESET_NAMES", "Command", "LidarSpec", "RobotSpec", "as_command", "preset"]
 
 PRESET_NAMES = ("rosbot", "puzzlebot", "m2wr")
 

@@ -39,7 +39,7 @@ import numpy as np
 from safenav.errors import InvalidScan, InvalidScanType
 from safenav.geometry import TWO_PI, Pose2D, wrap_angle
 
-__all__ = ["LaserScan", "Reading", "SectorReading", "SectorState", "BeamGeometry"]
+__all__ = ["BeamGeometry", "LaserScan", "Reading", "SectorReading", "SectorState"]
 
 #: Slack on the beam-count check: ROS drivers differ by one beam in whether
 #: ``angle_max`` is the last beam's angle or one increment past it.
@@ -140,12 +140,15 @@ def _real_array(name: str, values: Any) -> np.ndarray:
     try:
         array = np.array(values)
     except (TypeError, ValueError) as exc:  # ragged nesting
-        raise InvalidScanType(f"{name} must be a 1-D sequence of real numbers, got {type(values).__name__}: {exc}") from None
+        raise InvalidScanType(
+            f"{name} must be a 1-D sequence of real numbers, got {type(values).__name__}: {exc}"
+        ) from None
     if array.dtype.kind == "O":
         bad = [v for v in array.ravel() if isinstance(v, bool) or not isinstance(v, numbers.Real)][:1]
         if bad:
             raise InvalidScanType(
-                f"{name} must be a 1-D sequence of real numbers, got an element {bad[0]!r} of type {type(bad[0]).__name__}"
+                f"{name} must be a 1-D sequence of real numbers, "
+                f"got an element {bad[0]!r} of type {type(bad[0]).__name__}"
             )
     elif array.dtype.kind not in "fiu":
         raise InvalidScanType(f"{name} must be a 1-D sequence of real numbers, got elements of dtype {array.dtype}")
@@ -232,7 +235,8 @@ class LaserScan:
         mount = self.mount
         if not isinstance(mount, Sequence) or isinstance(mount, (str, bytes)) or len(mount) != 3:
             raise InvalidScanType(f"mount must be a pose (x, y, yaw), got {mount!r}")
-        put("mount", Pose2D(*(_real(f"mount.{axis}", value) for axis, value in zip(Pose2D._fields, mount))))
+        axes = zip(Pose2D._fields, mount, strict=True)
+        put("mount", Pose2D(*(_real(f"mount.{axis}", value) for axis, value in axes)))
         if self.stamp is not None:
             put("stamp", _real("stamp", self.stamp))
         if not isinstance(self.frame_id, str):
@@ -452,8 +456,9 @@ class LaserScan:
         counts = np.bincount(self.readings, minlength=len(Reading))
         summary = ", ".join(f"{reading.name.lower()}={counts[reading]}" for reading in Reading if counts[reading])
         return (
-            f"LaserScan({self.n_beams} beams, angle_min={self.angle_min:.4f}, angle_increment={self.angle_increment:.6f}, "
-            f"range=[{self.range_min:g}, {self.range_max:g}] m, mount={tuple(round(v, 4) for v in self.mount)}, {summary})"
+            f"LaserScan({self.n_beams} beams, angle_min={self.angle_min:.4f}, "
+            f"angle_increment={self.angle_increment:.6f}, range=[{self.range_min:g}, {self.range_max:g}] m, "
+            f"mount={tuple(round(v, 4) for v in self.mount)}, {summary})"
         )
 
 

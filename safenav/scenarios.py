@@ -27,7 +27,7 @@ from safenav.reference import Policy, make_policy
 from safenav.robot import PRESET_NAMES, RobotSpec, preset
 from safenav.worlds import World, random_world, tutorial_world
 
-__all__ = ["Scenario", "SCENARIO_NAMES", "scenario", "TUTORIAL_POLICY"]
+__all__ = ["SCENARIO_NAMES", "TUTORIAL_POLICY", "Scenario", "scenario"]
 
 TUTORIAL_POLICY = {"rosbot": "stop_at_wall", "puzzlebot": "obstacle_avoidance", "m2wr": "wall_follower"}
 """The tutorial controller of each preset."""

@@ -27,7 +27,7 @@ from safenav.geometry import Pose2D
 from safenav.robot import LidarSpec, RobotSpec
 from safenav.scan import LaserScan
 
-__all__ = ["Scene", "Segment", "Circle", "wall", "box", "cast", "synthetic_scan"]
+__all__ = ["Circle", "Scene", "Segment", "box", "cast", "synthetic_scan", "wall"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,8 @@ def box(center: tuple[float, float], size: tuple[float, float], yaw: float = 0.0
     """The four sides of a rectangle of ``size`` [m] at ``center`` [m], rotated by ``yaw`` [rad]."""
     hx, hy = 0.5 * size[0], 0.5 * size[1]
     c, s = math.cos(yaw), math.sin(yaw)
-    corners = [(center[0] + c * x - s * y, center[1] + s * x + c * y) for x, y in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
+    corners = [(center[0] + c * x - s * y, center[1] + s * x + c * y)
+               for x, y in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
     return tuple(Segment(corners[i], corners[(i + 1) % 4]) for i in range(4))
 
 

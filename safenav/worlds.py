@@ -317,7 +317,7 @@ class World:
 
     name: str
     obstacles: tuple[Obstacle, ...]
-    start: Pose2D = Pose2D()  # noqa: RUF009 (an immutable NamedTuple)
+    start: Pose2D = Pose2D()
     goal: tuple[float, float] | None = None
     bounds: tuple[float, float, float, float] | None = None
     obstacle_height: float = 0.5

@@ -144,7 +144,8 @@ def test_working_set_and_constraint_generation_match_the_full_qp(monkeypatch):
     for _ in range(300):
         bearings = rng.uniform(-math.pi, math.pi, 8)
         distances = rng.uniform(0.35, 0.9, 8)
-        items = [Circle((d * math.cos(b), d * math.sin(b)), rng.uniform(0.03, 0.15)) for d, b in zip(distances, bearings)]
+        items = [Circle((d * math.cos(b), d * math.sin(b)), rng.uniform(0.03, 0.15))
+                 for d, b in zip(distances, bearings, strict=True)]
         scene = Scene.of(*items, wall(rng.uniform(0.4, 0.8), rng.uniform(-math.pi, math.pi)))
         scan = synthetic_scan(robot, scene)
         filt = CBFSafetyFilter(robot, DT, n_bins=8)
@@ -327,7 +328,7 @@ def test_osqp_keeps_one_workspace():
 
 
 def test_unknown_solver_lists_the_installed_ones():
-    with pytest.raises(UnknownName, match="unknown QP solver 'gurobi'; expected one of: .*daqp"):
+    with pytest.raises(UnknownName, match=r"unknown QP solver 'gurobi'; expected one of: .*daqp"):
         CBFSafetyFilter(preset("rosbot"), DT, solver="gurobi")
 
 

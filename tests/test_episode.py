@@ -104,11 +104,12 @@ def test_filter_period_must_match_the_control_period():
 
 
 def test_bad_episode_config_names_the_field():
-    with pytest.raises(InvalidConfig, match="EpisodeConfig.duration must be a finite number > 0"):
+    with pytest.raises(InvalidConfig, match=r"EpisodeConfig\.duration must be a finite number > 0"):
         EpisodeConfig(duration=0.0)
 
 
-@pytest.mark.parametrize("steps", [pytest.param(3000, id="ci"), pytest.param(20_000, id="long", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("steps", [pytest.param(3000, id="ci"),
+                                   pytest.param(20_000, id="long", marks=pytest.mark.slow)])
 def test_soak_random_walk_through_the_cbf_stays_clean(steps):
     """No collision, no solver failure, flat memory, flat step time (leaks would show as growth)."""
     from benchmarks.soak import soak

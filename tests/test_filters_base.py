@@ -47,8 +47,8 @@ def test_scan_older_than_the_timeout_brakes_and_a_fresh_one_does_not(make):
     robot = preset("rosbot")
     filt = make(robot)
     scan = robot.scan()
-    fresh = filt.filter((0.5, 0.0), scan, scan_age=0.1)
-    assert fresh.status is FilterStatus.OK and fresh.u[0] == 0.5
+    fresh = filt.filter((0.5, 0.0), scan, scan_age=0.1, velocity=(0.5, 0.0))
+    assert fresh.status is FilterStatus.OK and fresh.u[0] == pytest.approx(0.5, abs=1e-6)
     stale = filt.filter((0.5, 0.0), scan, scan_age=filt.scan_timeout + 0.01, velocity=(0.5, 0.0))
     assert stale.status is FilterStatus.STALE and stale.braked
     assert stale.u == pytest.approx(robot.brake((0.5, 0.0), DT))
@@ -60,7 +60,7 @@ def test_watchdog_reads_the_scan_stamp_against_a_clock(make):
     robot = preset("puzzlebot")
     filt = make(robot)
     scan = robot.scan(stamp=100.0)
-    assert filt.filter((0.2, 0.0), scan, now=100.2).status is FilterStatus.OK
+    assert filt.filter((0.2, 0.0), scan, now=100.2, velocity=(0.2, 0.0)).status is FilterStatus.OK
     assert filt.filter((0.2, 0.0), scan, now=101.0).status is FilterStatus.STALE
     assert filt.filter((0.2, 0.0), scan, scan_age=math.nan).status is FilterStatus.STALE
 

@@ -43,7 +43,7 @@ def test_rollout_equals_repeated_steps(commands, x, y, yaw):
     start = Pose2D(x, y, yaw)
     poses = unicycle_rollout(start, np.array(commands), 0.1)
     pose = start
-    for (v, omega), row in zip(commands, poses[1:]):
+    for (v, omega), row in zip(commands, poses[1:], strict=True):
         pose = unicycle_step(pose, v, omega, 0.1)
         assert row[:2] == pytest.approx(pose[:2], abs=1e-9)
         assert wrap_angle(row[2] - pose.yaw) == pytest.approx(0.0, abs=1e-9)

@@ -78,7 +78,7 @@ def test_inflated_footprint_contains_the_exact_offset_shape(robot):
 
 
 def test_bad_zone_config_names_the_value():
-    with pytest.raises(InvalidConfig, match="slowdown_distance=0.01 must be >= stop_distance=0.05"):
+    with pytest.raises(InvalidConfig, match=r"slowdown_distance=0\.01 must be >= stop_distance=0\.05"):
         ZonesFilter(preset("rosbot"), DT, slowdown_distance=0.01)
     with pytest.raises(InvalidConfig, match="min_points must be an integer >= 1"):
         ZonesFilter(preset("rosbot"), DT, min_points=0)

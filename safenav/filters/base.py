@@ -31,7 +31,7 @@ from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
-__all__ = ["FilterStatus", "FilterResult", "SafetyFilter", "BRAKING_STATUSES", "check_period"]
+__all__ = ["BRAKING_STATUSES", "FilterResult", "FilterStatus", "SafetyFilter", "check_period"]
 
 
 class FilterStatus(enum.Enum):
@@ -167,7 +167,7 @@ class SafetyFilter(abc.ABC):
         self.scan_timeout = check_period("scan_timeout", scan_timeout)
         self.compensate_latency = compensate_latency
 
-    def reset(self) -> None:
+    def reset(self) -> None:  # noqa: B027 - an optional hook: stateless filters need nothing
         """Forget warm-start state (call between episodes)."""
 
     def __call__(self, u_nom: Any, scan: LaserScan, **kwargs: Any) -> FilterResult:

@@ -18,8 +18,16 @@ import scipy.sparse as sp
 
 from safenav.errors import UnknownName
 
-__all__ = ["QPData", "QPOutcome", "QPBackend", "QpsolversBackend", "DirectDAQP", "PersistentOSQP", "make_backend",
-           "available_solvers"]
+__all__ = [
+    "DirectDAQP",
+    "PersistentOSQP",
+    "QPBackend",
+    "QPData",
+    "QPOutcome",
+    "QpsolversBackend",
+    "available_solvers",
+    "make_backend",
+]
 
 #: Solver options that make answers feasible to well below the filters' verification tolerance.
 TIGHT_OPTIONS: dict[str, dict[str, float]] = {"daqp": {"primal_tol": 1e-10}, "proxqp": {"eps_abs": 1e-10}}

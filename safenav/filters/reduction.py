@@ -23,7 +23,7 @@ import numpy as np
 from safenav.geometry import TWO_PI
 from safenav.scan import LaserScan, Reading
 
-__all__ = ["obstacle_beams", "obstacle_points", "BlockedMotion", "blocked_motion", "unknown_arcs", "nearest_per_bin"]
+__all__ = ["BlockedMotion", "blocked_motion", "nearest_per_bin", "obstacle_beams", "obstacle_points", "unknown_arcs"]
 
 
 def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +110,7 @@ def unknown_arcs(scan: LaserScan, max_gap: float) -> tuple[tuple[float, float], 
     cumulative = np.concatenate(([0.0], np.cumsum(widths)))
     start_angle = yaw0 + (first - 0.5) * increment
     arcs = []
-    for begin, end in zip(starts, stops):
+    for begin, end in zip(starts, stops, strict=True):
         width = cumulative[end] - cumulative[begin]
         if width > max_gap:
             arcs.append((float(start_angle + cumulative[begin]), float(width)))

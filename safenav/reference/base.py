@@ -62,7 +62,7 @@ class Policy(abc.ABC):
                 policies need it.
         """
 
-    def reset(self, seed: int | None = None) -> None:
+    def reset(self, seed: int | None = None) -> None:  # noqa: B027 - optional hook for stateful policies
         """Forget internal state before a new episode; ``seed`` reseeds random policies."""
 
     @property
