@@ -62,10 +62,15 @@ class UnknownName(SafeNavError, ValueError):
         self.kind = kind
         self.name = name
         self.known = tuple(sorted(known))
+        self.hint = hint
         message = f"unknown {kind} {name!r}; expected one of: {', '.join(self.known)}"
         if hint:
             message += f" ({hint})"
         super().__init__(message)
+
+    def __reduce__(self) -> tuple[type, tuple[str, object, tuple[str, ...], str]]:
+        # Rebuild from the constructor's arguments, so the error survives a trip between processes.
+        return type(self), (self.kind, self.name, self.known, self.hint)
 
 
 class SimulatorError(SafeNavError, RuntimeError):
@@ -77,4 +82,8 @@ class MissingDependency(SafeNavError, ImportError):
 
     def __init__(self, package: str, purpose: str) -> None:
         self.package = package
+        self.purpose = purpose
         super().__init__(f"{purpose} needs the optional package {package!r}: pip install {package}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:
+        return type(self), (self.package, self.purpose)

@@ -30,3 +30,18 @@ def test_unknown_name_lists_the_known_names_sorted():
 def test_missing_dependency_gives_the_pip_line():
     error = errors.MissingDependency("rosbags", "reading ROS bags")
     assert "pip install rosbags" in str(error)
+
+
+@pytest.mark.parametrize(
+    "error",
+    [
+        errors.UnknownName("filter", "rrt", ["cbf", "mpc"], hint="see make_filter"),
+        errors.MissingDependency("rosbags", "reading ROS bags"),
+        errors.InvalidScan("ranges is empty; expected at least one beam"),
+    ],
+)
+def test_errors_survive_pickling_between_processes(error):
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(error))
+    assert type(copy) is type(error) and str(copy) == str(error)
