@@ -1,0 +1,306 @@
+"""Collision rates: every scenario x nominal policy x safety filter, N seeded episodes per cell.
+
+The matrix is the scenario registry (``safenav.scenarios``): the three tutorial scenarios
+(each with its own robot and world, the first also with the published buggy controller),
+random cluttered arenas for every preset (random walk and the robot's tutorial controller)
+and go-to-goal tasks through clutter; each (scenario, policy) pair runs with every filter
+(none, zones, cbf, mpc) on seeds 0..N-1. A seed draws the world and the start, so every
+filter of a row faces the same episodes.
+
+Per cell: episodes, collisions, collision rate with a 95 % Wilson interval, minimum body
+clearance (min, 5th percentile, median over the episodes), mean intervention ||u - u_nom||,
+distance travelled or goal progress, goal success and time to goal, stuck time (the nominal
+wants to move and the robot does not), fallbacks, and the filter's call time p50/p99 pooled
+over the cell. The first table is the same for the same seeds whatever the number of
+workers; the second holds the wall-clock filter times.
+
+Run ``python -m benchmarks.collision_rates --help`` (or ``safenav bench collisions --help``)::
+
+    python -m benchmarks.collision_rates --quick                 # the CI smoke subset, under 3 minutes
+    python -m benchmarks.collision_rates --json rates.json --plots plots/   # the full sweep
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from benchmarks.common import write_json
+from safenav.errors import InvalidConfig, SafeNavError
+from safenav.experiments import (
+    FILTER_COLORS,
+    FILTER_LABELS,
+    EpisodeOutcome,
+    available_filters,
+    cell_records,
+    episode_specs,
+    matrix,
+    outcome_table,
+    overlay_figure,
+    run_specs,
+    timing_table,
+)
+from safenav.filters import FILTER_NAMES
+from safenav.scenarios import scenario
+
+FULL_SEEDS = 20
+"""Seeds per cell of the default sweep: 13 (scenario, policy) pairs x 4 filters x 20 = 1040 episodes, the
+fewest above 1000; sized for the 15-minute budget on the 2-core development machine."""
+
+QUICK = {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0}
+"""The ``--quick`` subset: the buggy tutorial that always crashes, a cluttered arena and a goal task."""
+
+CONTROL_DT = 0.05
+"""Control period of every episode [s] (``SimConfig``'s default)."""
+
+
+def _names(text: str) -> list[str]:
+    return [name.strip() for name in text.split(",") if name.strip()]
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return value
+
+
+def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
+    """The benchmark's options."""
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the smoke subset: scenarios {', '.join(QUICK['scenarios'])}, every filter, "
+                             f"{QUICK['seeds']} seeds, {QUICK['duration']:g} s episodes (explicit options win)")
+    parser.add_argument("--seeds", metavar="N", type=_positive_int, default=None,
+                        help=f"seeds 0..N-1 per cell (default: {FULL_SEEDS}; {QUICK['seeds']} with --quick)")
+    parser.add_argument("--scenarios", type=_names, default=None, metavar="A,B",
+                        help="comma-separated scenarios (default: all)")
+    parser.add_argument("--policies", type=_names, default=None, metavar="A,B",
+                        help="comma-separated nominal policies (default: every scenario's own)")
+    parser.add_argument("--filters", type=_names, default=None, metavar="A,B",
+                        help=f"comma-separated filters (default: {','.join(FILTER_NAMES)}, leaving out those "
+                             "not available)")
+    parser.add_argument("--duration", metavar="T", type=_positive_float, default=None,
+                        help="episode length [s] for every scenario (default: each scenario's own)")
+    parser.add_argument("--workers", metavar="N", type=_positive_int, default=os.cpu_count() or 1,
+                        help="processes running episodes (default: one per core)")
+    parser.add_argument("--json", metavar="PATH", help="write the cells and the configuration as JSON")
+    parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
+    parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
+                                                       "one trajectory overlay per scenario")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "collision_rates") -> int:
+    """Run the sweep; print the tables; write the JSON, CSV and PNGs asked for.
+
+    Returns:
+        The exit code: 0, or 2 on bad usage (an unknown name, a filter not available).
+    """
+    args = build_parser(prog).parse_args(argv)
+    try:
+        return _sweep(args)
+    except SafeNavError as error:
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return 2
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    seeds = args.seeds or (QUICK["seeds"] if args.quick else FULL_SEEDS)
+    duration = args.duration or (QUICK["duration"] if args.quick else None)
+    scenarios = args.scenarios or (list(QUICK["scenarios"]) if args.quick else None)
+    if args.filters is None:
+        filters, missing = available_filters(FILTER_NAMES)
+        for name, reason in missing.items():
+            print(f"note: the {name!r} filter is not available ({reason}); left out")
+    else:
+        filters, missing = available_filters(args.filters)
+        if missing:
+            name, reason = next(iter(missing.items()))
+            raise InvalidConfig(f"the {name!r} filter is not available: {reason}")
+    cells = matrix(scenarios, args.policies, filters)
+    specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
+    pairs = len({(cell.scenario, cell.policy) for cell in cells})
+    print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
+          f"x {seeds} seeds, on {args.workers} processes")
+    start = time.perf_counter()
+    outcomes = run_specs(specs, args.workers, progress=not args.no_progress)
+    wall_time = time.perf_counter() - start
+    records = cell_records(outcomes)
+
+    print()
+    print(outcome_table(records))
+    print()
+    print("wall-clock times (they vary with the machine and its load):")
+    print(timing_table(records))
+    print()
+    print(f"{len(specs)} episodes in {wall_time:.0f} s on {args.workers} processes "
+          f"({sum(o.wall_time for o in outcomes):.0f} s of episode time)")
+
+    names = sorted({cell.scenario for cell in cells}, key=[c.scenario for c in cells].index)
+    config = {
+        "quick": args.quick,
+        "seeds": list(range(seeds)),
+        "scenarios": names,
+        "policies": sorted({cell.policy for cell in cells}),
+        "filters": filters,
+        "filters_unavailable": missing,
+        "duration": duration,
+        "durations": {name: duration or scenario(name).duration for name in names},
+        "control_dt": CONTROL_DT,
+        "episodes": len(specs),
+        "workers": args.workers,
+        "wall_time_s": wall_time,
+        "episode_time_s": sum(o.wall_time for o in outcomes),
+    }
+    write_json(args.json, {"cells": records, "config": config})
+    if args.csv:
+        write_csv(args.csv, records)
+        print(f"wrote {args.csv}")
+    if args.plots:
+        for path in write_plots(Path(args.plots), records, outcomes):
+            print(f"wrote {path}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- CSV
+
+
+_NESTED = {"collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"),
+           "time_to_goal": ("mean", "median")}
+"""Record fields that become several CSV columns."""
+
+
+def csv_row(record: dict[str, Any]) -> dict[str, Any]:
+    """A cell record as one flat CSV row (nested values get ``<field>_<part>`` columns)."""
+    row: dict[str, Any] = {}
+    for key, value in record.items():
+        if key in _NESTED:
+            parts = dict(zip(_NESTED[key], value, strict=True)) if isinstance(value, list) else (value or {})
+            row.update({f"{key}_{part}": parts.get(part) for part in _NESTED[key]})
+        elif isinstance(value, dict):
+            row[key] = ";".join(f"{k}={v}" for k, v in value.items())
+        elif isinstance(value, list):
+            row[key] = " ".join(str(item) for item in value)
+        else:
+            row[key] = value
+    return row
+
+
+def write_csv(path: str | os.PathLike[str], records: Sequence[dict[str, Any]]) -> None:
+    """Write one row per cell."""
+    rows = [csv_row(record) for record in records]
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with target.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+# ---------------------------------------------------------------------------------------------- plots
+
+
+def _figure(width: float, height: float) -> Figure:
+    figure = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def collision_rate_figure(records: Sequence[dict[str, Any]]) -> Figure:
+    """Grouped bars: the collision rate of each filter in each (scenario, policy) pair, with Wilson 95 % bars."""
+    pairs = list(dict.fromkeys((r["scenario"], r["policy"]) for r in records))
+    filters = list(dict.fromkeys(r["filter"] for r in records))
+    by_key = {(r["scenario"], r["policy"], r["filter"]): r for r in records}
+    figure = _figure(max(7.0, 0.75 * len(pairs) * max(len(filters), 2) / 2 + 2.0), 6.0)
+    ax = figure.add_subplot()
+    width = 0.8 / len(filters)
+    for index, name in enumerate(filters):
+        x, rate, low, high = [], [], [], []
+        for position, (scenario_name, policy) in enumerate(pairs):
+            record = by_key.get((scenario_name, policy, name))
+            if record is None:
+                continue
+            x.append(position - 0.4 + width * (index + 0.5))
+            rate.append(record["collision_rate"])
+            low.append(record["collision_rate"] - record["collision_rate_ci"][0])
+            high.append(record["collision_rate_ci"][1] - record["collision_rate"])
+            # The count above the interval, so that a zero rate still shows which filter it is.
+            ax.text(x[-1], record["collision_rate_ci"][1] + 0.015, f"{record['collisions']}/{record['episodes']}",
+                    rotation=90, ha="center", va="bottom", fontsize=6.5, color=FILTER_COLORS.get(name, "gray"))
+        ax.bar(x, rate, width, color=FILTER_COLORS.get(name, "gray"), label=FILTER_LABELS.get(name, name),
+               yerr=[low, high], capsize=2, error_kw={"elinewidth": 0.8, "ecolor": "black"})
+    episodes = sorted({r["episodes"] for r in records})
+    ax.set_xticks(range(len(pairs)), [f"{s}\n{p}" for s, p in pairs], rotation=35, ha="right", fontsize="small")
+    ax.set_ylim(0.0, 1.18)
+    ax.set_yticks(np.linspace(0.0, 1.0, 6))
+    ax.set_ylabel("collision rate (95% Wilson interval)")
+    ax.set_title(f"Collision rate by filter ({'/'.join(map(str, episodes))} episodes per bar)")
+    ax.grid(True, axis="y", linewidth=0.3, alpha=0.6)
+    ax.legend(ncols=len(filters), loc="upper center", bbox_to_anchor=(0.5, 1.0), fontsize="small")
+    return figure
+
+
+def clearance_figure(outcomes: Sequence[EpisodeOutcome], low: float = -0.1, high: float = 1.0) -> Figure:
+    """Histogram of each episode's minimum clearance, per filter (values outside [low, high] in the end bins)."""
+    filters = list(dict.fromkeys(o.spec.filter for o in outcomes))
+    bins = np.linspace(low, high, 45)
+    figure = _figure(7.5, 4.6)
+    ax = figure.add_subplot()
+    for name in filters:
+        values = np.clip([o.metrics.min_clearance for o in outcomes if o.spec.filter == name], low, high)
+        ax.hist(values, bins=bins, histtype="step", linewidth=1.6, color=FILTER_COLORS.get(name, "gray"),
+                label=f"{FILTER_LABELS.get(name, name)} ({values.size} episodes)")
+    ax.axvline(0.0, color="black", linestyle="--", linewidth=1.0)
+    ax.text(0.0, 0.98, " contact", transform=ax.get_xaxis_transform(), va="top", fontsize="small")
+    ax.set_xlabel(f"minimum body clearance in the episode [m] (clipped to [{low:g}, {high:g}])")
+    ax.set_ylabel("episodes")
+    ax.set_title("Minimum clearance per episode")
+    ax.grid(True, linewidth=0.3, alpha=0.6)
+    ax.legend(fontsize="small")
+    return figure
+
+
+def write_plots(folder: Path, records: Sequence[dict[str, Any]], outcomes: Sequence[EpisodeOutcome]) -> list[Path]:
+    """Write the collision-rate bars, the clearance histogram and one trajectory overlay per scenario.
+
+    Returns:
+        The paths written.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / "collision_rates.png", folder / "clearance_histogram.png"]
+    collision_rate_figure(records).savefig(paths[0])
+    clearance_figure(outcomes).savefig(paths[1])
+    recorded = [o for o in outcomes if o.trajectory is not None]
+    for name in dict.fromkeys(o.spec.scenario for o in recorded):
+        runs = [o for o in recorded if o.spec.scenario == name]
+        seed = runs[0].spec.seed
+        panels = [[o for o in runs if o.spec.policy == policy and o.spec.seed == seed]
+                  for policy in dict.fromkeys(o.spec.policy for o in runs)]
+        path = folder / f"trajectories_{name}.png"
+        overlay_figure(panels, title=f"{name}: naive vs each filter, seed {seed}").savefig(path)
+        paths.append(path)
+    return paths
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,127 @@
+"""The ``safenav`` command line: help everywhere, one-line errors with exit code 2, real episodes and the demo."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+from safenav import InvalidConfig
+from safenav.cli import load_benchmark, main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_safenav_help_runs_as_a_program():
+    result = subprocess.run([sys.executable, "-m", "safenav", "--help"], capture_output=True, text=True,
+                            timeout=120, check=False)
+    assert result.returncode == 0
+    for command in ("demo", "run", "bench"):
+        assert f"\n    {command} " in result.stdout
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    (["--help"], "COMMAND"),
+    (["demo", "--help"], "--seeds"),
+    (["run", "--help"], "--world"),
+    (["bench", "--help"], "collisions"),
+    (["bench", "collisions", "--help"], "--quick"),
+    (["bench", "latency", "--help"], "--solvers"),
+    (["bench", "sim", "--help"], "--threads"),
+])
+def test_every_command_has_help(argv, expected, capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 0
+    assert expected in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["run", "--robot", "r2d2"], "unknown robot 'r2d2'; expected one of: m2wr, puzzlebot, rosbot"),
+    (["run", "--world", "moon"],
+     "unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance, stop_at_wall, wall_follower"),
+    (["run", "--policy", "dance"], "unknown policy 'dance'; expected one of: go_to_goal, obstacle_avoidance, "
+                                   "random_walk, stop_at_wall, stop_at_wall_buggy, wall_follower"),
+    (["run", "--filter", "magic"], "unknown filter 'magic'; expected one of: cbf, mpc, none, zones"),
+    (["run", "--world", "wall_follower", "--policy", "go_to_goal"], "needs a world with a goal"),
+    (["run", "--duration", "-1"], "argument --duration: must be a number > 0, got -1"),
+    (["run", "--speed", "3"], "unrecognized arguments: --speed 3"),
+    (["demo", "--seeds", "0"], "argument --seeds: must be an integer >= 1, got 0"),
+    (["bench", "nothing"], "argument NAME: invalid choice: 'nothing'"),
+    (["fly"], "argument COMMAND: invalid choice: 'fly'"),
+])
+def test_bad_usage_is_one_line_and_exit_code_2(argv, message, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as exit_info:
+        code = exit_info.code
+    assert code == 2
+    captured = capsys.readouterr()
+    error = captured.err.strip()
+    assert "\n" not in error
+    assert error.startswith(("safenav: error:", "safenav run: error:", "safenav demo: error:",
+                             "safenav bench: error:"))
+    assert message in error
+    assert captured.out == ""
+
+
+def test_bench_outside_a_checkout_says_where_to_run(tmp_path):
+    with pytest.raises(InvalidConfig, match="run `safenav bench` from a safenav checkout"):
+        load_benchmark("collision_rates", roots=[tmp_path])
+    assert load_benchmark("collision_rates", roots=[tmp_path, ROOT]).__name__ == "benchmarks.collision_rates"
+
+
+def test_bench_collisions_reports_bad_names_with_its_own_prefix(capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    assert main(["bench", "collisions", "--filters", "magic"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == "safenav bench collisions: error: unknown filter 'magic'; expected one of: cbf, mpc, none, zones"
+
+
+@pytest.mark.sim
+def test_run_writes_a_summary_and_a_png(tmp_path, capsys):
+    png = tmp_path / "episode.png"
+    code = main(["run", "--world", "stop_at_wall", "--policy", "stop_at_wall_buggy", "--filter", "none",
+                 "--seed", "1", "--duration", "7", "--plot", str(png)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "rosbot in world 'stop_at_wall'" in out
+    assert "collided:        yes, at 5." in out   # the buggy controller reads the rear beam and drives on
+    assert f"wrote {png.resolve()}" in out
+    with Image.open(png) as image:
+        image.verify()
+    with Image.open(png) as image:
+        assert image.format == "PNG" and image.width > 300 and image.height > 300
+
+
+@pytest.mark.sim
+def test_run_in_a_random_world_with_another_robot_and_a_gif(tmp_path, capsys):
+    gif = tmp_path / "episode.gif"
+    code = main(["run", "--world", "goal", "--robot", "m2wr", "--filter", "cbf", "--seed", "2", "--duration", "2",
+                 "--gif", str(gif)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "m2wr in world 'goal' (scenario goal_m2wr, seed 2), policy go_to_goal, filter cbf" in out
+    assert "goal:" in out and "filter time:" in out and "collided:        no" in out
+    assert f"wrote {gif.resolve()} (41 frames" in out
+    with Image.open(gif) as image:
+        assert image.format == "GIF" and image.n_frames == 41
+
+
+@pytest.mark.sim
+def test_short_demo_writes_its_figure(tmp_path, capsys):
+    out = tmp_path / "demo.png"
+    assert main(["demo", "--seeds", "1", "--duration", "2", "--out", str(out), "--no-progress"]) == 0
+    stdout = capsys.readouterr().out
+    for name in ("stop_at_wall", "obstacle_avoidance", "wall_follower"):
+        assert f"| {name} |" in stdout
+    assert "| none |" in stdout and "| cbf |" in stdout
+    assert f"wrote {out.resolve()}" in stdout
+    with Image.open(out) as image:
+        image.verify()
+    with Image.open(out) as image:
+        assert image.width > 2 * image.height   # three panels side by side
