@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from safenav.experiments import markdown
+
 
 def summary(samples_s: Sequence[float] | np.ndarray) -> dict[str, float]:
     """Median, p99, mean and count of durations given in seconds, reported in microseconds."""
@@ -28,18 +30,16 @@ def summary(samples_s: Sequence[float] | np.ndarray) -> dict[str, float]:
 
 
 def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    """A GitHub-flavoured markdown table; floats get a sensible number of digits."""
+    """A GitHub-flavoured markdown table (:func:`safenav.experiments.markdown`); floats get sensible digits."""
 
-    def cell(value: Any) -> str:
+    def cell(value: Any) -> Any:
         if isinstance(value, float):
             if value != value:  # NaN
                 return "–"
             return f"{value:.0f}" if abs(value) >= 100 else f"{value:.3g}"
-        return str(value)
+        return value
 
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    lines += ["| " + " | ".join(cell(value) for value in row) + " |" for row in rows]
-    return "\n".join(lines)
+    return markdown(headers, [[cell(value) for value in row] for row in rows])
 
 
 def machine() -> dict[str, Any]:

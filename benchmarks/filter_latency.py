@@ -118,8 +118,8 @@ def real_recordings(robot: RobotSpec, solver: str, per_scan: int, seed: int) -> 
     return rows
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="filter_latency", description=__doc__,
+def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robot", default="rosbot", help="robot preset (default: rosbot, 720 beams)")
     parser.add_argument("--scenes", type=int, default=250, help="random cluttered scenes (default: 250)")

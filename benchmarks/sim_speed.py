@@ -201,8 +201,9 @@ def print_table(report: dict[str, Any]) -> None:
     print("steps/s = 1 / median step time; 'x floor' = random-world median / empty-world median, same run")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser(prog: str = "sim_speed") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robot", choices=PRESET_NAMES, default="rosbot", help="robot preset (default: rosbot)")
     parser.add_argument("--obstacles", type=int, default=30, help="obstacles per random world (default: 30)")
     parser.add_argument("--worlds", type=int, default=5, help="random worlds, seeds 0..N-1 (default: 5)")
@@ -217,8 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def main(argv: Sequence[str] | None = None, prog: str = "sim_speed") -> int:
+    args = build_parser(prog).parse_args(argv)
     if args.worlds < 1 or args.steps < 1 or args.obstacles < 0 or any(t < 0 for t in args.threads):
         print("sim_speed: --worlds and --steps must be >= 1, --obstacles and --threads >= 0", file=sys.stderr)
         return 2

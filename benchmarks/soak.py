@@ -101,8 +101,8 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
     }
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="soak", description=__doc__,
+def main(argv: Sequence[str] | None = None, prog: str = "soak") -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=20_000, help="control periods (default: 20000)")
     parser.add_argument("--robot", default="rosbot", help="robot preset (default: rosbot)")

@@ -121,6 +121,9 @@ class EpisodeSpec:
         record: keep the per-step trajectory.
         record_scans: keep the scans too (for animations).
         gui: open the PyBullet GUI.
+        sim_options: extra :class:`~safenav.sim_bullet.SimConfig` fields as ``(name, value)``
+            pairs (noise, dropout, latency, ...).
+        filter_options: extra filter settings as ``(name, value)`` pairs (``margin``, ...).
     """
 
     scenario: str
@@ -132,6 +135,8 @@ class EpisodeSpec:
     record: bool = False
     record_scans: bool = False
     gui: bool = False
+    sim_options: tuple[tuple[str, Any], ...] = ()
+    filter_options: tuple[tuple[str, Any], ...] = ()
 
     @property
     def cell(self) -> Cell:
@@ -277,9 +282,9 @@ def run_spec(spec: EpisodeSpec) -> EpisodeOutcome:
     robot = task.robot
     world = task.world(spec.seed)
     policy = task.policy(spec.policy, world, spec.seed)
-    sim = SimConfig(gui=spec.gui)
+    sim = SimConfig(gui=spec.gui, **dict(spec.sim_options))
     config = EpisodeConfig(duration=task.duration if spec.duration is None else spec.duration, sim=sim)
-    safety_filter = make_filter(spec.filter, robot, sim.control_dt)
+    safety_filter = make_filter(spec.filter, robot, sim.control_dt, **dict(spec.filter_options))
     start = time.perf_counter()
     result = run_episode(world, robot, policy, safety_filter, config=config, seed=spec.seed,
                          record=spec.record or spec.record_scans, record_scans=spec.record_scans)
