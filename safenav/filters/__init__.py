@@ -17,6 +17,7 @@ from typing import Any
 from safenav.errors import UnknownName
 from safenav.filters.base import BRAKING_STATUSES, FilterResult, FilterStatus, SafetyFilter
 from safenav.filters.cbf import CBFConfig, CBFSafetyFilter
+from safenav.filters.mpc import MPCConfig, MPCSafetyFilter
 from safenav.filters.qp import available_solvers
 from safenav.filters.zones import ZonesConfig, ZonesFilter
 from safenav.robot import RobotSpec
@@ -28,6 +29,8 @@ __all__ = [
     "CBFSafetyFilter",
     "FilterResult",
     "FilterStatus",
+    "MPCConfig",
+    "MPCSafetyFilter",
     "SafetyFilter",
     "ZonesConfig",
     "ZonesFilter",

@@ -12,7 +12,7 @@ import qpsolvers
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
 from safenav.filters.qp import QPBackend, QPData, make_backend
-from safenav.filters.reduction import BlockedMotion, blocked_motion, nearest_per_bin, obstacle_beams
+from safenav.filters.reduction import BlockedMotion, blocked_motion, default_margin, nearest_per_bin, obstacle_beams
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -217,9 +217,7 @@ class CBFSafetyFilter(SafetyFilter):
         self.config = config
         self.gamma = config.gamma if config.gamma is not None else min(1.0, robot.a_max * self.dt / robot.v_max)
         self.far_gamma = max(self.gamma, config.far_gamma if config.far_gamma is not None else 1.0)
-        lidar = robot.lidar
-        self.margin = (config.margin if config.margin is not None
-                       else 0.02 + 2.0 * lidar.noise_std + 1.0 * lidar.angle_increment)
+        self.margin = config.margin if config.margin is not None else default_margin(robot)
         self.lookahead = config.lookahead if config.lookahead is not None else DEFAULT_LOOKAHEAD
         self.kappa = 0.5 * robot.omega_max * self.dt
         weights = config.weights or (1.0 / robot.v_max**2, STEERING_PREFERENCE / robot.omega_max**2)

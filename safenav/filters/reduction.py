@@ -21,9 +21,25 @@ from typing import NamedTuple
 import numpy as np
 
 from safenav.geometry import TWO_PI
+from safenav.robot import RobotSpec
 from safenav.scan import LaserScan, Reading
 
-__all__ = ["BlockedMotion", "blocked_motion", "nearest_per_bin", "obstacle_beams", "obstacle_points", "unknown_arcs"]
+__all__ = ["BlockedMotion", "blocked_motion", "default_margin", "nearest_per_bin", "obstacle_beams", "obstacle_points",
+           "unknown_arcs"]
+
+
+SAFETY_DISTANCE = 0.02
+"""The part of the default margin that is a plain safety distance [m]."""
+
+
+def default_margin(robot: RobotSpec) -> float:
+    """The filters' default clearance margin for ``robot`` [m].
+
+    ``0.02 m + 2 noise_std + 1 m x angle_increment``: a safety distance, twice the lidar's
+    range noise, and the widest object that can hide between two beams 1 m away.
+    """
+    lidar = robot.lidar
+    return SAFETY_DISTANCE + 2.0 * lidar.noise_std + 1.0 * lidar.angle_increment
 
 
 def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
