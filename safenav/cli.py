@@ -33,7 +33,7 @@ RANDOM_WORLDS = ("clutter", "goal")
 """Worlds of ``safenav run --world`` drawn from the seed (one scenario per robot: ``clutter_rosbot``, ...)."""
 
 BENCHMARKS = {"collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
-              "robustness": "robustness", "soak": "soak"}
+              "robustness": "robustness", "soak": "soak", "braking": "braking"}
 """``safenav bench NAME``: the module of ``benchmarks/`` that runs it."""
 
 DEMO_FILTERS = ("none", "cbf", "mpc")
@@ -275,13 +275,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=_run)
 
     bench = commands.add_parser(
-        "bench", formatter_class=formatter, help="the benchmarks: collisions, latency, sim, robustness, soak",
+        "bench", formatter_class=formatter, help="the benchmarks: collisions, latency, sim, robustness, soak, braking",
         description="Run a benchmark from a safenav checkout (the benchmarks are not part of the wheel):\n\n"
                     "  collisions  collision rates, scenario x policy x filter (benchmarks/collision_rates.py)\n"
                     "  latency     time of one filter call per QP back-end (benchmarks/filter_latency.py)\n"
                     "  sim         speed of the PyBullet simulator (benchmarks/sim_speed.py)\n"
                     "  robustness  collisions under sensor and actuator faults (benchmarks/robustness.py)\n"
-                    "  soak        one long episode: leaks, drift, failures (benchmarks/soak.py)\n\n"
+                    "  soak        one long episode: leaks, drift, failures (benchmarks/soak.py)\n"
+                    "  braking     weak brakes at speed: velocity-level vs acceleration-aware (benchmarks/braking.py)\n\n"
                     "Everything after the name goes to the benchmark: safenav bench collisions --help.")
     bench.add_argument("benchmark", choices=tuple(BENCHMARKS), metavar="NAME",
                        help=f"one of: {', '.join(BENCHMARKS)}")

@@ -498,3 +498,15 @@ def test_too_coarse_a_period_is_rejected():
         MPCSafetyFilter(preset("rosbot"), dt=1.0)
     with pytest.raises(InvalidConfig, match="dt must be a finite duration > 0"):
         MPCSafetyFilter(preset("rosbot"), dt=-0.1)
+
+
+@pytest.mark.sim
+def test_braking_benchmark_velocity_level_cbf_crashes_where_the_mpc_stops():
+    """In the simulator: weak brakes at full speed towards a wall (benchmarks/braking.py)."""
+    from benchmarks.braking import run
+
+    rows = {row["variant"]: row for row in run(seeds=2, accel=0.75, speed=1.0)}
+    assert rows["none"]["collisions"] == 2
+    assert rows["cbf, acceleration ignored"]["collisions"] >= 1
+    assert rows["mpc"]["collisions"] == 0 and rows["cbf"]["collisions"] == 0
+    assert rows["mpc"]["min_clearance"] >= 0.0
