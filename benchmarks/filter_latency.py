@@ -118,6 +118,50 @@ def real_recordings(robot: RobotSpec, solver: str, per_scan: int, seed: int) -> 
     return rows
 
 
+CLOSED_LOOP_CELLS = (("clutter_rosbot", "random_walk"), ("goal_rosbot", "go_to_goal"), ("clutter_m2wr", "random_walk"))
+"""(scenario, policy) pairs of the closed-loop timing."""
+
+
+class CallRecorder:
+    """An episode callback that keeps every filter call's time, solve time and status."""
+
+    def __init__(self) -> None:
+        self.total: list[float] = []
+        self.solving: list[float] = []
+        self.solve: list[float] = []
+        self.statuses: dict[str, int] = {}
+
+    def __call__(self, index: int, state: Any, result: Any) -> None:
+        self.total.append(result.filter_time)
+        if result.solver and result.solve_time > 0.0:
+            self.solving.append(result.filter_time)
+            self.solve.append(result.solve_time)
+        self.statuses[result.status.value] = self.statuses.get(result.status.value, 0) + 1
+
+
+def closed_loop(filters: Sequence[str], seeds: int, duration: float = 20.0) -> list[dict[str, Any]]:
+    """Per-call times of each filter over closed-loop episodes (warm starts and all), in this process."""
+    from safenav.episode import EpisodeConfig, run_episode
+    from safenav.filters import make_filter
+    from safenav.scenarios import scenario
+
+    rows = []
+    for name in filters:
+        recorder = CallRecorder()
+        for scenario_name, policy_name in CLOSED_LOOP_CELLS:
+            task = scenario(scenario_name)
+            for seed in range(seeds):
+                world = task.world(seed)
+                safety_filter = make_filter(name, task.robot, DT)
+                run_episode(world, task.robot, task.policy(policy_name, world, seed), safety_filter,
+                            config=EpisodeConfig(duration=duration), seed=seed, callback=recorder)
+        rows.append({"filter": name, "calls": len(recorder.total), "end_to_end": summary(recorder.total),
+                     "solving_calls": summary(recorder.solving), "solve": summary(recorder.solve),
+                     "solve_fraction": len(recorder.solving) / max(len(recorder.total), 1),
+                     "statuses": recorder.statuses})
+    return rows
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -132,6 +176,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     parser.add_argument("--mpc", action="store_true", help="also time the MPC filter (on --mpc-calls calls)")
     parser.add_argument("--mpc-calls", type=int, default=1000, help="MPC calls (default: 1000)")
     parser.add_argument("--real", action="store_true", help="also run on every real recorded scan")
+    parser.add_argument("--closed-loop", action="store_true",
+                        help="also time every call of closed-loop episodes in the simulator")
+    parser.add_argument("--closed-loop-filters", default="cbf,mpc",
+                        help="filters for --closed-loop (default: cbf,mpc)")
+    parser.add_argument("--closed-loop-seeds", type=int, default=4,
+                        help="seeds per cell for --closed-loop (default: 4)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     args = parser.parse_args(argv)
@@ -167,8 +217,9 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
         time_filter(mpc, mpc_cases[:50])
         mpc.reset()
         result = time_filter(mpc, mpc_cases)
-        results["mpc"] = {**result, "horizon": mpc.config.horizon, "points": mpc.config.n_points}
-        rows.append([f"mpc N={mpc.config.horizon} K={mpc.config.n_points}", result["end_to_end"]["median_us"],
+        results["mpc"] = {**result, "horizon": mpc.horizon, "points": mpc.config.n_points}
+        rows.append([f"mpc N={mpc.horizon} K={mpc.config.n_points} (independent calls)",
+                     result["end_to_end"]["median_us"],
                      result["end_to_end"]["p99_us"], result["qp_calls"]["median_us"], result["qp_calls"]["p99_us"],
                      result["solve"]["median_us"], result["solve"]["p99_us"],
                      f"{100 * result['qp_fraction']:.0f}%", f"{base / result['end_to_end']['median_us']:.1f}x"])
@@ -176,6 +227,18 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     print()
     print(markdown_table(["filter", "median µs", "p99 µs", "QP-call median µs", "QP-call p99 µs",
                           "solve median µs", "solve p99 µs", "calls with QP", "speed-up vs baseline"], rows))
+
+    if args.closed_loop:
+        results["closed_loop"] = closed_loop(args.closed_loop_filters.split(","), args.closed_loop_seeds)
+        print()
+        print(f"closed loop in the simulator (every call of the episodes, in order, velocity given), "
+              f"{args.closed_loop_seeds} seeds of {', '.join('/'.join(cell) for cell in CLOSED_LOOP_CELLS)}:")
+        print(markdown_table(["filter", "calls", "median µs", "p99 µs", "calls that solved", "solving-call median µs",
+                              "solving-call p99 µs", "solver median µs", "solver p99 µs", "statuses"],
+                             [[row["filter"], row["calls"], row["end_to_end"]["median_us"], row["end_to_end"]["p99_us"],
+                               f"{100 * row['solve_fraction']:.0f}%", row["solving_calls"]["median_us"],
+                               row["solving_calls"]["p99_us"], row["solve"]["median_us"], row["solve"]["p99_us"],
+                               row["statuses"]] for row in results["closed_loop"]]))
 
     if args.real:
         default = args.solvers.split(",")[0]

@@ -86,6 +86,10 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
     done = metrics.steps
     first = step_times[warmup:warmup + WINDOW]
     last = step_times[done - WINDOW:done]
+    # Median of every window after the warm-up, and the least-squares trend through them.
+    windows = [float(np.median(step_times[start:start + WINDOW]) * 1e6)
+               for start in range(warmup, done - WINDOW + 1, WINDOW)]
+    trend = float(np.polyfit(np.arange(len(windows)), windows, 1)[0]) if len(windows) > 1 else 0.0
     return {
         "robot": robot_name, "filter": filter_name, "seed": seed, "steps": done, "wall_s": wall,
         "collided": metrics.collided, "collision_time": metrics.collision_time,
@@ -94,6 +98,8 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
         "first_window_median_us": float(np.median(first) * 1e6), "last_window_median_us": float(np.median(last) * 1e6),
         "first_window_p99_us": float(np.percentile(first, 99) * 1e6),
         "last_window_p99_us": float(np.percentile(last, 99) * 1e6),
+        "window_medians_us": [round(value, 1) for value in windows],
+        "trend_us_per_window": trend,
         "filter_p50_us": metrics.filter_p50_us, "filter_p99_us": metrics.filter_p99_us,
         "rss_start_mb": memory["rss_start"] / 2**20, "rss_end_mb": memory["rss_end"] / 2**20,
         **({"python_start_mb": memory["python_start"] / 2**20, "python_end_mb": memory["python_end"] / 2**20}

@@ -446,10 +446,11 @@ def tutorial_world(name: str) -> World:
       4 m wide wall is 3 m ahead. Nothing else is in range, so side and rear beams read ``+inf``.
     * ``"obstacle_avoidance"`` (Puzzlebot): a walled 6 x 6 m arena, interior ``[-3, 3]^2``,
       with three boxes and three cylinders; the robot starts in a corner facing the middle.
-    * ``"wall_follower"`` (m2wr): an L-shaped room (8 x 8 m with the 4 x 4 m top-right
+    * ``"wall_follower"`` (m2wr): an L-shaped room (10 x 10 m with the 5 x 5 m top-right
       quarter cut away). Following the wall on its right, the robot turns left at the five
-      inside corners and right round the outside corner at (4, 4). It starts 0.75 m from the
-      bottom wall, heading +x with that wall on its right.
+      inside corners and right round the outside corner at (5, 5), about 16 m along the
+      wall from the start. It starts 0.8 m from the bottom wall, heading +x with that wall
+      on its right.
 
     :data:`TUTORIAL_PRESETS` names the robot of each world.
 
@@ -474,8 +475,8 @@ def tutorial_world(name: str) -> World:
         return World("obstacle_avoidance", arena + obstacles, start=Pose2D(-2.2, -2.2, math.pi / 4),
                      bounds=(-3.4, -3.4, 3.4, 3.4))
     if name == "wall_follower":
-        room = _room((0.0, 0.0), (8.0, 0.0), (8.0, 4.0), (4.0, 4.0), (4.0, 8.0), (0.0, 8.0))
-        return World("wall_follower", room, start=Pose2D(2.0, 0.8, 0.0), bounds=(-0.6, -0.6, 8.6, 8.6))
+        room = _room((0.0, 0.0), (10.0, 0.0), (10.0, 5.0), (5.0, 5.0), (5.0, 10.0), (0.0, 10.0))
+        return World("wall_follower", room, start=Pose2D(2.0, 0.8, 0.0), bounds=(-0.6, -0.6, 10.6, 10.6))
     raise UnknownName("tutorial world", name, TUTORIAL_WORLDS)
 
 

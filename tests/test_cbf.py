@@ -307,7 +307,8 @@ def test_every_solver_gives_the_same_answer(solver):
         expected = reference.filter(u_nom, scan, velocity=velocity)
         got = filt.filter(u_nom, scan, velocity=velocity)
         assert got.status is expected.status
-        assert got.u == pytest.approx(expected.u, abs=2e-6)
+        # Active-set solvers agree to round-off; OSQP (first-order, no polishing) to 1e-5.
+        assert got.u == pytest.approx(expected.u, abs=1e-5 if solver == "osqp" else 2e-6)
         compared += expected.modified
     assert compared > 10
 

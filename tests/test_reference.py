@@ -785,3 +785,87 @@ def test_bad_configs_name_the_value(build, message):
     with pytest.raises(InvalidConfig, match=message) as info:
         build()
     assert isinstance(info.value, ValueError)
+
+
+# ------------------------------------------------------------------ closed loop, in each tutorial's world
+
+def tutorial_episode(world_name: str, policy, duration: float, *, world=None):
+    from safenav.episode import EpisodeConfig, run_episode
+    from safenav.worlds import TUTORIAL_PRESETS, tutorial_world
+
+    robot = preset(TUTORIAL_PRESETS[world_name])
+    world = world or tutorial_world(world_name)
+    return robot, world, run_episode(world, robot, policy, config=EpisodeConfig(duration=duration), seed=0,
+                                     record=True, record_scans=True)
+
+
+@pytest.mark.sim
+def test_stop_at_wall_ends_stopped_between_half_a_metre_and_a_metre_from_the_wall():
+    robot, world, result = tutorial_episode("stop_at_wall", StopAtWall(robot=preset("rosbot")), 12.0)
+    metrics, trajectory = result.metrics, result.trajectory
+    assert not metrics.collided
+    x, _, yaw = trajectory.pose[-1]
+    ahead = (3.0 - x) / math.cos(yaw)          # the wall's near face is the line x = 3 m
+    assert 0.5 <= ahead <= 1.0
+    assert np.all(np.abs(trajectory.velocity[-20:]) < 1e-9)      # stopped, and stays stopped
+    assert trajectory.policy_state[-1] == "stop"
+
+
+@pytest.mark.sim
+def test_the_published_stop_at_wall_drives_into_the_wall():
+    _, _, result = tutorial_episode("stop_at_wall", StopAtWall.tutorial_bug(), 12.0)
+    assert result.metrics.collided
+    assert set(result.trajectory.policy_state) == {"go"}      # beam 360 looks backwards: never sees the wall
+
+
+@pytest.mark.sim
+def test_obstacle_avoidance_turns_away_when_something_enters_its_cone():
+    robot, _, result = tutorial_episode("obstacle_avoidance", ObstacleAvoidance(robot=preset("puzzlebot")), 40.0)
+    trajectory = result.trajectory
+    states = trajectory.policy_state
+    turning = [index for index, state in enumerate(states) if state == "turn in place"]
+    assert turning, "the tutorial world must put something in the cone"
+    assert np.allclose(trajectory.u_nom[turning], [0.0, 0.5])
+    assert np.allclose(trajectory.u_nom[[i for i, s in enumerate(states) if s == "drive"]], [0.2, 0.3])
+    cone = math.radians(15.0)
+    ends = [index for index in turning[:-1] if states[index + 1] == "drive"]
+    assert ends
+    for index in ends:                         # each turn ends with the cone clear again
+        after = trajectory.scans[index + 1].sector(-cone, cone)
+        assert after.min_range >= 0.5
+    assert not result.metrics.collided
+
+
+@pytest.mark.sim
+def test_wall_follower_finds_a_wall_and_follows_it_on_its_right_for_ten_metres():
+    from safenav.worlds import tutorial_world
+
+    # Start in the open, 2.5 m from every wall, so that it has to find one first.
+    world = tutorial_world("wall_follower").replace(start=Pose2D(2.5, 2.5, 0.0))
+    robot, _, result = tutorial_episode("wall_follower", WallFollower(robot=preset("m2wr")), 60.0, world=world)
+    trajectory = result.trajectory
+    states = list(trajectory.policy_state)
+    assert states[0] == "find the wall" and "follow the wall" in states
+    first_follow = states.index("follow the wall")
+    steps = np.diff(trajectory.pose[:, :2], axis=0)
+    travelled = float(np.sum(np.hypot(steps[first_follow:, 0], steps[first_follow:, 1])))
+    assert travelled >= 10.0                   # before the episode ends or the robot touches anything
+    right = (-math.radians(108), -math.radians(18))    # the tutorial's "right" and "front-right" sectors
+    following = [index for index in range(first_follow, len(states)) if states[index] == "follow the wall"]
+    wall_on_right = [trajectory.scans[index].sector(*right).min_range < 1.5 for index in following]
+    assert np.mean(wall_on_right) > 0.95
+
+
+@pytest.mark.sim
+def test_go_to_goal_reaches_a_goal_in_free_space_and_hits_an_obstacle_on_the_way():
+    from safenav.episode import EpisodeConfig, run_episode
+    from safenav.worlds import Cylinder, Wall, World
+
+    robot = preset("puzzlebot")
+    walls = (Wall((-1.0, -2.0), (4.0, -2.0)), Wall((-1.0, 2.0), (4.0, 2.0)))
+    free = World("open", walls, start=Pose2D(0.0, 0.0, 0.5), goal=(3.0, 0.5))
+    reached = run_episode(free, robot, GoToGoal(robot, free.goal), config=EpisodeConfig(duration=20.0)).metrics
+    assert reached.goal_reached and not reached.collided
+    blocked = free.replace(obstacles=(*walls, Cylinder((1.5, 0.25), 0.2)))
+    crashed = run_episode(blocked, robot, GoToGoal(robot, blocked.goal), config=EpisodeConfig(duration=20.0)).metrics
+    assert crashed.collided and not crashed.goal_reached

@@ -182,16 +182,16 @@ def test_wall_follower_starts_with_the_wall_on_the_right_and_has_corners_both_wa
     robot = preset("m2wr")
     scan = synthetic_scan(robot, world.scene(), world.start)
     assert scan.ranges[scan.beam_index(-math.pi / 2)] == pytest.approx(0.8 - 0.5 * WALL_THICKNESS, abs=1e-6)
-    # The L-shaped room: the room wraps three quadrants round the outside corner (4, 4) and one
-    # round the inside corners such as (8, 0); the cut-away quarter is outside the room.
+    # The L-shaped room: the room wraps three quadrants round the outside corner (5, 5) and one
+    # round the inside corners such as (10, 0); the cut-away quarter is outside the room.
     def inside_quadrants(x: float, y: float) -> int:
         return sum(reachable(world, 0.05, world.start, (x + dx, y + dy))
                    for dx, dy in ((0.3, 0.3), (-0.3, 0.3), (-0.3, -0.3), (0.3, -0.3)))
 
-    assert inside_quadrants(4.0, 4.0) == 3
-    assert inside_quadrants(8.0, 0.0) == inside_quadrants(0.0, 8.0) == inside_quadrants(8.0, 4.0) == 1
-    assert not reachable(world, robot.radius, world.start, (6.0, 6.0))
-    assert reachable(world, robot.radius, world.start, (1.0, 7.0))
+    assert inside_quadrants(5.0, 5.0) == 3
+    assert inside_quadrants(10.0, 0.0) == inside_quadrants(0.0, 10.0) == inside_quadrants(10.0, 5.0) == 1
+    assert not reachable(world, robot.radius, world.start, (7.5, 7.5))
+    assert reachable(world, robot.radius, world.start, (1.0, 9.0))
 
 
 def test_unknown_tutorial_world_lists_the_names():

@@ -137,8 +137,10 @@ class PersistentOSQP:
         import osqp  # imported here: only this back-end needs it
 
         self._osqp = osqp
-        self.settings = dict(eps_abs=eps, eps_rel=eps, polishing=True, verbose=False, max_iter=max_iter,
-                             warm_starting=True, polish_refine_iter=5)
+        # No polishing: at this tolerance it adds nothing the caller's check needs, and OSQP 1.x
+        # prints "Polishing not needed" on stdout even with verbose=False.
+        self.settings = dict(eps_abs=eps, eps_rel=eps, polishing=False, verbose=False, max_iter=max_iter,
+                             warm_starting=True)
         self._workspaces: dict[int, tuple[Any, int]] = {}
         self.setups = 0
         """How many workspaces were set up (one per problem size, plus one per growth)."""
