@@ -282,7 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "  sim         speed of the PyBullet simulator (benchmarks/sim_speed.py)\n"
                     "  robustness  collisions under sensor and actuator faults (benchmarks/robustness.py)\n"
                     "  soak        one long episode: leaks, drift, failures (benchmarks/soak.py)\n"
-                    "  braking     weak brakes at speed: velocity-level vs acceleration-aware (benchmarks/braking.py)\n\n"
+                    "  braking     weak brakes at speed: velocity-level vs acceleration-aware filters "
+                    "(benchmarks/braking.py)\n\n"
                     "Everything after the name goes to the benchmark: safenav bench collisions --help.")
     bench.add_argument("benchmark", choices=tuple(BENCHMARKS), metavar="NAME",
                        help=f"one of: {', '.join(BENCHMARKS)}")

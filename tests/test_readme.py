@@ -1,9 +1,9 @@
 """The README's set-up commands are the ones CI runs."""
 
 import re
+from pathlib import Path
 
 import pytest
-from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -801,7 +801,7 @@ def tutorial_episode(world_name: str, policy, duration: float, *, world=None):
 
 @pytest.mark.sim
 def test_stop_at_wall_ends_stopped_between_half_a_metre_and_a_metre_from_the_wall():
-    robot, world, result = tutorial_episode("stop_at_wall", StopAtWall(robot=preset("rosbot")), 12.0)
+    _, _, result = tutorial_episode("stop_at_wall", StopAtWall(robot=preset("rosbot")), 12.0)
     metrics, trajectory = result.metrics, result.trajectory
     assert not metrics.collided
     x, _, yaw = trajectory.pose[-1]
@@ -820,7 +820,7 @@ def test_the_published_stop_at_wall_drives_into_the_wall():
 
 @pytest.mark.sim
 def test_obstacle_avoidance_turns_away_when_something_enters_its_cone():
-    robot, _, result = tutorial_episode("obstacle_avoidance", ObstacleAvoidance(robot=preset("puzzlebot")), 40.0)
+    _, _, result = tutorial_episode("obstacle_avoidance", ObstacleAvoidance(robot=preset("puzzlebot")), 40.0)
     trajectory = result.trajectory
     states = trajectory.policy_state
     turning = [index for index, state in enumerate(states) if state == "turn in place"]
@@ -842,7 +842,7 @@ def test_wall_follower_finds_a_wall_and_follows_it_on_its_right_for_ten_metres()
 
     # Start in the open, 2.5 m from every wall, so that it has to find one first.
     world = tutorial_world("wall_follower").replace(start=Pose2D(2.5, 2.5, 0.0))
-    robot, _, result = tutorial_episode("wall_follower", WallFollower(robot=preset("m2wr")), 60.0, world=world)
+    _, _, result = tutorial_episode("wall_follower", WallFollower(robot=preset("m2wr")), 60.0, world=world)
     trajectory = result.trajectory
     states = list(trajectory.policy_state)
     assert states[0] == "find the wall" and "follow the wall" in states
