@@ -19,6 +19,7 @@ Commands are ``(v, omega)``: linear velocity along base x [m/s] and yaw rate
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 from collections.abc import Sequence
@@ -61,6 +62,11 @@ def as_command(u: Any, name: str = "u") -> np.ndarray:
     if array.shape != (2,):
         raise InvalidCommand(f"{name} must have shape (2,) as (v [m/s], omega [rad/s]), got shape {array.shape}")
     return array.astype(float)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
 
 
 def _positive(owner: str, name: str, value: Any) -> float:
@@ -188,15 +194,19 @@ class RobotSpec:
                 )
             object.__setattr__(self, "footprint", tuple((float(x), float(y)) for x, y in polygon))
 
-    @property
+    @functools.cached_property
     def lower(self) -> np.ndarray:
-        """Lower velocity limits ``(v_min, -omega_max)`` [m/s, rad/s]."""
-        return np.array([self.v_min, -self.omega_max])
+        """Lower velocity limits ``(v_min, -omega_max)`` [m/s, rad/s] (read-only)."""
+        return _read_only(np.array([self.v_min, -self.omega_max]))
 
-    @property
+    @functools.cached_property
     def upper(self) -> np.ndarray:
-        """Upper velocity limits ``(v_max, omega_max)`` [m/s, rad/s]."""
-        return np.array([self.v_max, self.omega_max])
+        """Upper velocity limits ``(v_max, omega_max)`` [m/s, rad/s] (read-only)."""
+        return _read_only(np.array([self.v_max, self.omega_max]))
+
+    @functools.cached_property
+    def _accel_step(self) -> np.ndarray:
+        return _read_only(np.array([self.a_max, self.alpha_max]))
 
     def velocity_bounds(self, velocity: Sequence[float] | np.ndarray | None = None,
                         dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -216,7 +226,7 @@ class RobotSpec:
         if velocity is None or dt is None:
             return lower, upper
         current = np.asarray(velocity, dtype=float)
-        step = np.array([self.a_max, self.alpha_max]) * dt
+        step = self._accel_step * dt
         new_lower = np.clip(current - step, lower, upper)
         new_upper = np.clip(current + step, lower, upper)
         return np.minimum(new_lower, new_upper), np.maximum(new_lower, new_upper)
