@@ -265,3 +265,16 @@ def test_latency_compensation_can_be_switched_off():
     scan = synthetic_scan(robot, Scene.of(wall(1.0)))
     result = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0), scan_age=0.2)
     assert result.clearance == pytest.approx(1.0 - robot.radius, abs=1e-9)
+
+
+@settings(max_examples=400)
+@given(hostile_scans(), commands, st.one_of(st.none(), st.tuples(st.floats(-1.0, 1.0), st.floats(-3.0, 3.0))))
+def test_mpc_never_raises_never_returns_nan_on_hostile_readings(case, u_nom, velocity):
+    from safenav.filters.mpc import MPCSafetyFilter
+
+    robot, scan = case
+    result = MPCSafetyFilter(robot, DT).filter(u_nom, scan, velocity=velocity)
+    assert_safe_command(result, robot, velocity)
+    assert (result.status in BRAKING_STATUSES) == result.braked
+    if result.status is not FilterStatus.OK:
+        assert result.message
