@@ -36,6 +36,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from benchmarks.common import write_json
+from safenav.cli import positive_float, positive_int
 from safenav.errors import InvalidConfig, SafeNavError
 from safenav.experiments import (
     FILTER_COLORS,
@@ -68,20 +69,6 @@ def _names(text: str) -> list[str]:
     return [name.strip() for name in text.split(",") if name.strip()]
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not (np.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
-    return value
-
-
 def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     """The benchmark's options."""
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
@@ -89,7 +76,7 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true",
                         help=f"the smoke subset: scenarios {', '.join(QUICK['scenarios'])}, every filter, "
                              f"{QUICK['seeds']} seeds, {QUICK['duration']:g} s episodes (explicit options win)")
-    parser.add_argument("--seeds", metavar="N", type=_positive_int, default=None,
+    parser.add_argument("--seeds", metavar="N", type=positive_int, default=None,
                         help=f"seeds 0..N-1 per cell (default: {FULL_SEEDS}; {QUICK['seeds']} with --quick)")
     parser.add_argument("--scenarios", type=_names, default=None, metavar="A,B",
                         help="comma-separated scenarios (default: all)")
@@ -98,9 +85,9 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     parser.add_argument("--filters", type=_names, default=None, metavar="A,B",
                         help=f"comma-separated filters (default: {','.join(FILTER_NAMES)}, leaving out those "
                              "not available)")
-    parser.add_argument("--duration", metavar="T", type=_positive_float, default=None,
+    parser.add_argument("--duration", metavar="T", type=positive_float, default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
-    parser.add_argument("--workers", metavar="N", type=_positive_int, default=os.cpu_count() or 1,
+    parser.add_argument("--workers", metavar="N", type=positive_int, default=os.cpu_count() or 1,
                         help="processes running episodes (default: one per core)")
     parser.add_argument("--json", metavar="PATH", help="write the cells and the configuration as JSON")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")

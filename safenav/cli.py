@@ -47,14 +47,16 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1."""
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
     return value
 
 
-def _positive_float(text: str) -> float:
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
     value = float(text)
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
@@ -240,13 +242,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "with the trajectories of the first seed side by side.")
     demo.add_argument("--seed", metavar="S", type=int, default=0,
                       help="first seed; its trajectories are drawn (default: 0)")
-    demo.add_argument("--seeds", metavar="N", type=_positive_int, default=5,
+    demo.add_argument("--seeds", metavar="N", type=positive_int, default=5,
                       help="seeds per scenario and filter (default: 5)")
     demo.add_argument("--out", metavar="PNG", default="safenav-demo.png",
                       help="the PNG to write (default: ./safenav-demo.png)")
-    demo.add_argument("--workers", metavar="N", type=_positive_int, default=None,
+    demo.add_argument("--workers", metavar="N", type=positive_int, default=None,
                       help="processes running episodes (default: one per core)")
-    demo.add_argument("--duration", metavar="T", type=_positive_float, default=None,
+    demo.add_argument("--duration", metavar="T", type=positive_float, default=None,
                       help="episode length [s] (default: each scenario's own: 12, 40 and 60 s)")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.set_defaults(handler=_demo)
@@ -267,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"safety filter: {', '.join(FILTER_NAMES)} (default: cbf)")
     run.add_argument("--seed", metavar="S", type=int, default=0,
                      help="seed of the world, the start and the noise (default: 0)")
-    run.add_argument("--duration", metavar="T", type=_positive_float, default=None,
+    run.add_argument("--duration", metavar="T", type=positive_float, default=None,
                      help="episode length [s] (default: the world's own)")
     run.add_argument("--gui", action="store_true", help="watch it in the PyBullet GUI (real time)")
     run.add_argument("--plot", metavar="PNG", help="write a top-down picture of the episode")
