@@ -123,3 +123,10 @@ def test_as_command_rejects_structural_garbage(value, exception, fragment):
 
 def test_as_command_keeps_non_finite_values_for_the_filter_to_handle():
     assert np.isnan(as_command((math.nan, 0.0))[0])
+
+
+def test_velocity_limits_are_read_only_so_callers_cannot_change_the_robot():
+    robot = preset("rosbot")
+    with pytest.raises(ValueError):
+        robot.lower[0] = 0.0
+    assert robot.lower.tolist() == [-1.0, -3.0] and robot.upper.tolist() == [1.0, 3.0]

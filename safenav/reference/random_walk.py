@@ -57,7 +57,7 @@ class RandomWalk(Policy):
         self.robot = robot
         self.hold_steps = int(hold_steps)
         self.forward_only = forward_only
-        lower = robot.lower
+        lower = robot.lower.copy()
         if forward_only:
             lower[0] = 0.0
         self._lower, self._upper = lower, robot.upper
