@@ -384,13 +384,6 @@ class LaserScan:
         """Number of beams that are not ``INVALID`` (in range, or ``+-inf``)."""
         return int(np.count_nonzero(self._hit_mask)) + int(np.count_nonzero(np.isinf(self.ranges)))
 
-    def obstacle_ranges(self) -> np.ndarray:
-        """Range of every beam as an obstacle distance [m]: ``HIT`` as read, ``TOO_CLOSE`` at
-        ``range_min``, and ``nan`` for ``NO_RETURN`` and ``INVALID`` (no obstacle point)."""
-        ranges = np.where(self._hit_mask, self.ranges, math.nan)
-        ranges[self.ranges == -math.inf] = self.range_min
-        return ranges
-
     def obstacle_beams(self) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the beams that give an obstacle point, and their ranges [m].
 
@@ -415,17 +408,19 @@ class LaserScan:
             frame: ``"base"`` (through :attr:`mount`) or ``"laser"``.
         """
         index, r = self.obstacle_beams()
-        out = np.empty((index.size, 2))
         if frame == "laser":
             angles = self.angles[index]
-            np.multiply(r, np.cos(angles), out=out[:, 0])
-            np.multiply(r, np.sin(angles), out=out[:, 1])
-            return out
+            return np.column_stack((r * np.cos(angles), r * np.sin(angles)))
         if frame != "base":
             raise InvalidScan(f"frame must be 'base' or 'laser', got {frame!r}")
+        return self.beam_points(index, r)
+
+    def beam_points(self, index: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+        """The base-frame points ``(N, 2)`` [m] at ``ranges`` [m] along the beams ``index``."""
         geometry = self.geometry
-        out[:, 0] = self.mount.x + r * geometry.cos_base[index]
-        out[:, 1] = self.mount.y + r * geometry.sin_base[index]
+        out = np.empty((len(index), 2))
+        out[:, 0] = self.mount.x + ranges * geometry.cos_base[index]
+        out[:, 1] = self.mount.y + ranges * geometry.sin_base[index]
         return out
 
     def sector(self, lo: float, hi: float) -> SectorReading:

@@ -202,6 +202,13 @@ class SafetyFilter(abc.ABC):
             InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
         """
         start = time.perf_counter()
+        result = self._screened(u_nom, scan, velocity, scan_age, now)
+        object.__setattr__(result, "filter_time", time.perf_counter() - start)
+        return result
+
+    def _screened(self, u_nom: Any, scan: LaserScan, velocity: Any, scan_age: float | None,
+                  now: float | None) -> FilterResult:
+        """The checks every filter needs around :meth:`_filter` (see :meth:`filter`)."""
         nominal = as_command(u_nom, "u_nom")
         if not isinstance(scan, LaserScan):
             raise InvalidScanType(
@@ -212,25 +219,24 @@ class SafetyFilter(abc.ABC):
             current = as_command(velocity, "velocity")
             if not np.all(np.isfinite(current)):
                 return self._brake(nominal, None, FilterStatus.BAD_INPUT,
-                                   f"velocity is not finite: {current.tolist()}", start)
+                                   f"velocity is not finite: {current.tolist()}")
         if scan_age is None and now is not None and scan.stamp is not None:
             scan_age = float(now) - scan.stamp
         if scan_age is not None and not scan_age <= self.scan_timeout:  # also catches NaN
             return self._brake(nominal, current, FilterStatus.STALE,
-                               f"scan is {scan_age:.3f} s old; timeout {self.scan_timeout:.3f} s", start)
+                               f"scan is {scan_age:.3f} s old; timeout {self.scan_timeout:.3f} s")
         if not (math.isfinite(nominal[0]) and math.isfinite(nominal[1])):
             return self._brake(nominal, current, FilterStatus.BAD_INPUT,
-                               f"u_nom is not finite: {nominal.tolist()}", start)
+                               f"u_nom is not finite: {nominal.tolist()}")
         if scan.n_informative == 0:
             return self._brake(nominal, current, FilterStatus.NO_DATA,
-                               f"none of the {scan.n_beams} beams is informative (all NaN or out of range)", start)
+                               f"none of the {scan.n_beams} beams is informative (all NaN or out of range)")
         if self.compensate_latency and current is not None and scan_age is not None and scan_age > 0.0:
             scan = self.current_frame(scan, current, scan_age)
         result = self._filter(nominal, scan, current)
         if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
             return self._brake(nominal, current, FilterStatus.FALLBACK,
-                               f"filter produced a non-finite command {result.u.tolist()}", start)
-        object.__setattr__(result, "filter_time", time.perf_counter() - start)
+                               f"filter produced a non-finite command {result.u.tolist()}")
         return result
 
     @staticmethod
@@ -246,11 +252,10 @@ class SafetyFilter(abc.ABC):
         return scan.replace(mount=moved.inverse().compose(scan.mount))
 
     def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, message: str,
-               start: float, **details: Any) -> FilterResult:
-        """A result that brakes as hard as the acceleration limits allow."""
+                **details: Any) -> FilterResult:
+        """A result that brakes as hard as the acceleration limits allow (from ``velocity`` when known)."""
         u = self.robot.brake(velocity, self.dt if velocity is not None else None)
-        return FilterResult(u=u, u_nom=nominal, status=status, message=message,
-                            filter_time=time.perf_counter() - start, **details)
+        return FilterResult(u=u, u_nom=nominal, status=status, message=message, **details)
 
     @abc.abstractmethod
     def _filter(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray | None) -> FilterResult:

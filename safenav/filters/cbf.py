@@ -12,7 +12,14 @@ import qpsolvers
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
 from safenav.filters.qp import QPBackend, QPData, make_backend
-from safenav.filters.reduction import BlockedMotion, blocked_motion, default_margin, nearest_per_bin, obstacle_beams
+from safenav.filters.reduction import (
+    BlockedMotion,
+    blocked_motion,
+    body_clearance,
+    default_margin,
+    nearest_per_bin,
+    obstacle_beams,
+)
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -254,12 +261,7 @@ class CBFSafetyFilter(SafetyFilter):
         nearest = float(ranges.min())
         cut = max((1.0 - self.gamma) * (nearest + offset - radius) + drop + offset + radius, nearest + 2.0 * offset)
         keep = ranges <= cut
-        index, ranges = index[keep], ranges[keep]
-        geometry = scan.geometry
-        points = np.empty((index.size, 2))
-        points[:, 0] = mount.x + ranges * geometry.cos_base[index]
-        points[:, 1] = mount.y + ranges * geometry.sin_base[index]
-        return points
+        return scan.beam_points(index[keep], ranges[keep])
 
     def _constraints(self, scan: LaserScan, velocity: np.ndarray | None) -> _Constraints:
         robot, dt, ell = self.robot, self.dt, self.lookahead
@@ -388,7 +390,7 @@ class CBFSafetyFilter(SafetyFilter):
         constraints = self._constraints(scan, velocity)
         points, barrier = constraints.points, constraints.barrier
         min_barrier = float(barrier.min()) if len(barrier) else math.inf
-        clearance = float(np.hypot(points[:, 0], points[:, 1]).min()) - self.robot.radius if len(points) else math.inf
+        clearance = body_clearance(points, self.robot.radius)
         G, rhs = constraints.G, constraints.rhs
         details: dict[str, Any] = dict(min_barrier=min_barrier, clearance=clearance)
 
@@ -426,8 +428,9 @@ class CBFSafetyFilter(SafetyFilter):
                                                                            constraints, slack=True)
             solve_time += more_time
             if z is None:
-                return self._fallback(u_nom, constraints, f"QP solver {self.backend.name} failed "
-                                      f"({solver_status}) even with slack", solve_time, details)
+                return self._brake(u_nom, constraints.velocity, FilterStatus.FALLBACK,
+                                   f"QP solver {self.backend.name} failed ({solver_status}) even with slack",
+                                   solver=self.backend.name, solve_time=solve_time, **details)
             z, slack = z[:4], max(float(z[4]), 0.0)
             if slack > VERIFY_TOLERANCE:
                 status = FilterStatus.SLACK
@@ -440,8 +443,9 @@ class CBFSafetyFilter(SafetyFilter):
         residual = G @ self._lifted(u, constraints) - rhs - slack
         if not np.all(residual <= VERIFY_TOLERANCE):
             worst = int(np.argmax(residual))
-            return self._fallback(u_nom, constraints, f"QP answer from {self.backend.name} violates row {worst} "
-                                  f"by {residual[worst]:.3g} m/s", solve_time, details)
+            return self._brake(u_nom, constraints.velocity, FilterStatus.FALLBACK,
+                               f"QP answer from {self.backend.name} violates row {worst} by {residual[worst]:.3g} m/s",
+                               solver=self.backend.name, solve_time=solve_time, **details)
         rows_used = candidate[working]
         row_points = constraints.point[rows_used]
         used = np.zeros(len(points) + 1, dtype=bool)  # the extra slot absorbs field-of-view rows (-1)
@@ -490,9 +494,3 @@ class CBFSafetyFilter(SafetyFilter):
         if constraints.blocked.forward or constraints.blocked.backward:
             return f"cannot stop before moving towards an unseen direction; constraints relaxed by {slack:.4f} m"
         return f"cannot brake in time under the acceleration limits; constraints relaxed by {slack:.4f} m"
-
-    def _fallback(self, u_nom: np.ndarray, constraints: _Constraints, message: str, solve_time: float,
-                  details: dict[str, Any]) -> FilterResult:
-        u = self.robot.brake(constraints.velocity, self.dt if constraints.velocity is not None else None)
-        return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.FALLBACK, message=message,
-                            solver=self.backend.name, solve_time=solve_time, **details)

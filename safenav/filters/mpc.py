@@ -622,15 +622,16 @@ class MPCSafetyFilter(SafetyFilter):
     def _problem(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray) -> MPCProblem:
         robot = self.robot
         points = obstacle_points(scan, robot.radius)
+        distance = np.hypot(points[:, 0], points[:, 1])
         if self.config.memory > 0.0:
             # Remembered points stay obstacles while their direction is unknown to this scan.
             recalled, ages = self._recalled
             unseen = self._unseen(scan, recalled)
             recalled, ages = recalled[unseen], ages[unseen]
-            near = np.hypot(points[:, 0], points[:, 1]) <= self._memory_range
+            near = distance <= self._memory_range
             self._pending = (np.vstack((points[near], recalled)), np.concatenate((np.zeros(int(near.sum())), ages)))
             points = np.vstack((points, recalled))
-        distance = np.hypot(points[:, 0], points[:, 1])
+            distance = np.concatenate((distance, np.hypot(recalled[:, 0], recalled[:, 1])))
         if distance.size:
             nearest = float(distance.min())
             min_barrier, clearance = nearest - (robot.radius + self.margin), nearest - robot.radius
@@ -855,8 +856,8 @@ class MPCSafetyFilter(SafetyFilter):
                             plan=self._plan_array(poses, commands, problem.velocity), **details)
 
     def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, message: str,
-               start: float, **details: Any) -> FilterResult:
+               **details: Any) -> FilterResult:
         """Brake at the limits from ``velocity`` (the last command when unknown); the stored plan is dropped."""
         self._commands = None
         current = self._last_command if velocity is None else velocity
-        return super()._brake(nominal, current, status, message, start, **details)
+        return super()._brake(nominal, current, status, message, **details)

@@ -24,8 +24,16 @@ from safenav.geometry import TWO_PI
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan, Reading
 
-__all__ = ["BlockedMotion", "blocked_motion", "default_margin", "nearest_per_bin", "obstacle_beams", "obstacle_points",
-           "unknown_arcs"]
+__all__ = [
+    "BlockedMotion",
+    "blocked_motion",
+    "body_clearance",
+    "default_margin",
+    "nearest_per_bin",
+    "obstacle_beams",
+    "obstacle_points",
+    "unknown_arcs",
+]
 
 
 SAFETY_DISTANCE = 0.02
@@ -62,17 +70,18 @@ def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.
         inside = body_radius**2 - (mx * mx + my * my)
         if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
             exit_range = -along + np.sqrt(along**2 + inside)
-            ranges = ranges.copy()
             ranges[too_close] = np.minimum(ranges[too_close], exit_range)
     return index, ranges
 
 
+def body_clearance(points: np.ndarray, body_radius: float) -> float:
+    """Distance from the base origin to the nearest of ``points`` minus ``body_radius`` [m] (inf if none)."""
+    return float(np.hypot(points[:, 0], points[:, 1]).min()) - body_radius if len(points) else math.inf
+
+
 def obstacle_points(scan: LaserScan, body_radius: float) -> np.ndarray:
     """Obstacle points of ``scan`` in the base frame, ``(N, 2)`` [m], as :func:`obstacle_beams` places them."""
-    index, ranges = obstacle_beams(scan, body_radius)
-    geometry = scan.geometry
-    return np.column_stack((scan.mount.x + ranges * geometry.cos_base[index],
-                            scan.mount.y + ranges * geometry.sin_base[index]))
+    return scan.beam_points(*obstacle_beams(scan, body_radius))
 
 
 class BlockedMotion(NamedTuple):
@@ -86,10 +95,11 @@ class BlockedMotion(NamedTuple):
     """The unknown arcs as ``(start, width)`` in the base frame [rad], counter-clockwise from ``start``."""
 
 
-@functools.lru_cache(maxsize=64)
-def _fov_gap(angle_min: float, angle_increment: float, n_beams: int) -> float:
-    """Angular width not covered by the beams [rad] (0 for a full turn)."""
-    return max(0.0, TWO_PI - n_beams * angle_increment)
+def _outside_arc(first_direction: float, angle_increment: float, n_beams: int,
+                 max_gap: float) -> tuple[tuple[float, float], ...]:
+    """The arc outside the field of view as an unknown arc, if it is wider than ``max_gap`` [rad]."""
+    gap = max(0.0, TWO_PI - n_beams * angle_increment)
+    return ((first_direction + (n_beams - 0.5) * angle_increment, gap),) if gap > max_gap else ()
 
 
 def unknown_arcs(scan: LaserScan, max_gap: float) -> tuple[tuple[float, float], ...]:
@@ -105,11 +115,11 @@ def unknown_arcs(scan: LaserScan, max_gap: float) -> tuple[tuple[float, float], 
     """
     increment = scan.angle_increment
     n = scan.n_beams
-    gap = _fov_gap(scan.angle_min, increment, n)
-    informative = scan.readings != Reading.INVALID
     yaw0 = scan.mount.yaw + scan.angle_min  # base-frame direction of beam 0
     if scan.n_informative == n:
-        return ((yaw0 + (n - 0.5) * increment, gap),) if gap > max_gap else ()
+        return _outside_arc(yaw0, increment, n, max_gap)
+    gap = TWO_PI - scan.field_of_view
+    informative = scan.readings != Reading.INVALID
     if not informative.any():
         return ((0.0, TWO_PI),)
     # Walk the circle starting at an informative beam, so no unknown run wraps around the start.
@@ -168,9 +178,7 @@ def _blocked(arcs: tuple[tuple[float, float], ...], side_tolerance: float) -> Bl
 @functools.lru_cache(maxsize=64)
 def _blocked_by_layout(first_direction: float, angle_increment: float, n_beams: int, max_gap: float,
                        side_tolerance: float) -> BlockedMotion:
-    gap = _fov_gap(first_direction, angle_increment, n_beams)
-    arcs = ((first_direction + (n_beams - 0.5) * angle_increment, gap),) if gap > max_gap else ()
-    return _blocked(arcs, side_tolerance)
+    return _blocked(_outside_arc(first_direction, angle_increment, n_beams, max_gap), side_tolerance)
 
 
 def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int) -> np.ndarray:

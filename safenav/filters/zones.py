@@ -24,6 +24,7 @@ from matplotlib.path import Path
 
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
+from safenav.filters.reduction import body_clearance
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -127,7 +128,7 @@ class ZonesFilter(SafetyFilter):
 
     def _filter(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray | None) -> FilterResult:
         points = scan.points()
-        clearance = float(np.hypot(points[:, 0], points[:, 1]).min()) - self.robot.radius if len(points) else math.inf
+        clearance = body_clearance(points, self.robot.radius)
         in_slowdown = self._slowdown.contains_points(points) if len(points) else np.zeros(0, dtype=bool)
         near = points[in_slowdown]
         in_stop = self._stop.contains_points(near) if len(near) else np.zeros(0, dtype=bool)
