@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from matplotlib.path import Path
 
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
@@ -123,6 +122,8 @@ class ZonesFilter(SafetyFilter):
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
         self.slowdown_polygon = inflate_footprint(robot, config.slowdown_distance, disk=disk)
+        from matplotlib.path import Path  # here, not at import: only this filter needs matplotlib
+
         self._stop = Path(self.stop_polygon)
         self._slowdown = Path(self.slowdown_polygon)
 
