@@ -78,12 +78,21 @@ class SimulatorError(SafeNavError, RuntimeError):
 
 
 class MissingDependency(SafeNavError, ImportError):
-    """An optional dependency is not installed; the message gives the pip line."""
+    """An optional dependency is not installed; the message gives the exact pip line.
 
-    def __init__(self, package: str, purpose: str) -> None:
+    Args:
+        package: the missing distribution (``"pybullet"``).
+        purpose: what needs it (``"the PyBullet simulator"``).
+        extra: the safenav extra that installs it (``"sim"``); without one the message
+            names the package itself.
+    """
+
+    def __init__(self, package: str, purpose: str, extra: str | None = None) -> None:
         self.package = package
         self.purpose = purpose
-        super().__init__(f"{purpose} needs the optional package {package!r}: pip install {package}")
+        self.extra = extra
+        line = f'pip install "safenav[{extra}]"' if extra else f"pip install {package}"
+        super().__init__(f"{purpose} needs the optional package {package!r}: {line}")
 
-    def __reduce__(self) -> tuple[type, tuple[str, str]]:
-        return type(self), (self.package, self.purpose)
+    def __reduce__(self) -> tuple[type, tuple[str, str, str | None]]:
+        return type(self), (self.package, self.purpose, self.extra)

@@ -19,6 +19,7 @@ from safenav.filters.base import BRAKING_STATUSES, FilterResult, FilterStatus, S
 from safenav.filters.cbf import CBFConfig, CBFSafetyFilter
 from safenav.filters.mpc import MPCConfig, MPCSafetyFilter
 from safenav.filters.qp import available_solvers
+from safenav.filters.reduction import default_margin
 from safenav.filters.zones import ZonesConfig, ZonesFilter
 from safenav.robot import RobotSpec
 
@@ -35,6 +36,7 @@ __all__ = [
     "ZonesConfig",
     "ZonesFilter",
     "available_solvers",
+    "default_margin",
     "make_filter",
 ]
 
