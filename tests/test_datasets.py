@@ -378,7 +378,8 @@ def test_lidar_data_dir_honours_the_environment(tmp_path: Path, monkeypatch: pyt
 def test_missing_rosbags_names_the_pip_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "rosbags", None)
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
-    with pytest.raises(MissingDependency, match=r"reading ROS 1 bags needs .*pip install rosbags") as caught:
+    pip_line = r"reading ROS 1 bags needs the optional package 'rosbags': pip install \"safenav\[ros\]\""
+    with pytest.raises(MissingDependency, match=pip_line) as caught:
         load_rosbag(tmp_path / "any.bag")
     assert isinstance(caught.value, ImportError) and isinstance(caught.value, SafeNavError)
     with pytest.raises(MissingDependency):

@@ -49,7 +49,7 @@ conventions = st.fixed_dictionaries({
     "angle_min": st.floats(-math.pi, 0.0),
     "fov": st.floats(HALF_PI, 2 * math.pi),
     "n": st.integers(10, 2000),
-    "mount_yaw": st.floats(-10.0, 10.0),
+    "mount_yaw": st.floats(-2 * math.pi, 2 * math.pi),  # beyond one turn is rejected as degrees
 })
 
 
