@@ -15,7 +15,17 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from safenav import InvalidConfig, InvalidScan, LidarSpec, MissingDependency, Pose2D, Reading, SafeNavError, preset
+from safenav import (
+    InvalidConfig,
+    InvalidScan,
+    LidarMismatch,
+    LidarSpec,
+    MissingDependency,
+    Pose2D,
+    Reading,
+    SafeNavError,
+    preset,
+)
 from safenav.datasets import (
     RECORDING_FILES,
     RecordedScan,
@@ -439,3 +449,39 @@ ERRORS = [
 def test_errors(tmp_path: Path, call, error: type[Exception], message: str) -> None:
     with pytest.raises(error, match=message):
         call(tmp_path)
+
+
+# ============================================================================ the bag through a filter
+
+
+def test_bag_zeros_read_as_no_return_when_the_driver_says_so(lidar_data: Path) -> None:
+    scans = load_rosbag(lidar_data / RECORDING_FILES["laser-scan-matcher-bag"], no_return="zero")
+    counts = np.bincount(_all_readings(scans), minlength=len(Reading))
+    assert (counts[Reading.NO_RETURN], counts[Reading.INVALID]) == (12_699, 643)   # zeros free, codes invalid
+    assert all(recorded.scan.no_return == "zero" and not recorded.scan.mount_given for recorded in scans)
+
+
+def _replay_example():
+    import runpy
+
+    return runpy.run_path(str(Path(__file__).resolve().parents[1] / "examples" / "replay_rosbag.py"),
+                          run_name="replay_rosbag")
+
+
+def test_bag_replayed_with_the_right_description_has_no_spurious_slack(lidar_data: Path) -> None:
+    example = _replay_example()
+    scans = example["bag_scans"](lidar_data / RECORDING_FILES["laser-scan-matcher-bag"])
+    with pytest.raises(LidarMismatch, match=r"681 beams vs 720") as caught:
+        preset("rosbot").match_scan(scans[0])                    # the README's old wiring is refused
+    assert "LidarSpec(n_beams=681, angle_min=-2.08621, angle_max=2.08621" in str(caught.value)
+    for speed in (0.1, 0.3, 0.5):
+        right = example["replay"](scans, "hokuyo", "held", speed)
+        readme = example["replay"](scans, "readme-rosbot", "held", speed)
+        zeros_invalid = example["replay"](scans, "hokuyo-rep117", "held", speed)
+        assert readme.slack == len(scans) and readme.spurious_slack > 150
+        assert zeros_invalid.spurious_slack > 20
+        assert right.spurious_slack == 0 and right.slack <= 0.25 * len(scans)
+        fed_back = example["replay"](scans, "hokuyo", "fed back", speed)
+        assert fed_back.spurious_slack == 0 and fed_back.slack <= 0.05 * len(scans)
+        assert fed_back.mean_speed >= 0.8 * speed                # the robot keeps going
+        assert example["replay"](scans, "readme-rosbot", "fed back", speed).mean_speed < 0.05 * speed
