@@ -36,7 +36,7 @@ import collections
 import dataclasses
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -96,17 +96,17 @@ class Replay:
         return self.statuses.get("slack", 0)
 
 
-def wired(wiring: str, message_scan: LaserScan) -> tuple[RobotSpec, LaserScan]:
-    """The robot and the scan the filter sees under ``wiring``, from a scan read as the bag's message."""
+def wired(wiring: str) -> tuple[RobotSpec, Callable[[LaserScan], LaserScan]]:
+    """The robot of ``wiring`` and what it does to a scan read as the bag's message before the filter sees it."""
     if wiring == "readme-rosbot":
-        robot = preset("rosbot")
-        return robot, message_scan.with_mount(robot.lidar.mount)
+        rosbot = preset("rosbot")
+        return rosbot, lambda scan: scan.with_mount(rosbot.lidar.mount)
     if wiring == "no-mount-rosbot":
-        return preset("rosbot"), message_scan
+        return preset("rosbot"), lambda scan: scan
+    robot = HOKUYO_ROBOT
     if wiring == "hokuyo-rep117":
         robot = HOKUYO_ROBOT.replace(lidar=dataclasses.replace(HOKUYO, no_return=None))
-        return robot, robot.match_scan(message_scan)
-    return HOKUYO_ROBOT, HOKUYO_ROBOT.match_scan(message_scan)
+    return robot, robot.match_scan
 
 
 def replay(scans: Sequence[LaserScan], wiring: str, velocity: str, speed: float) -> Replay:
@@ -114,12 +114,11 @@ def replay(scans: Sequence[LaserScan], wiring: str, velocity: str, speed: float)
     statuses: collections.Counter[str] = collections.Counter()
     spurious = 0
     commanded = []
-    robot = wired(wiring, scans[0])[0]
+    robot, prepare = wired(wiring)
     safety = CBFSafetyFilter(robot, dt=DT)
     current = np.array([speed, 0.0])
     for message_scan in scans:
-        _, scan = wired(wiring, message_scan)
-        result = safety.filter((speed, 0.0), scan, velocity=current)
+        result = safety.filter((speed, 0.0), prepare(message_scan), velocity=current)
         statuses[result.status.value] += 1
         commanded.append(float(result.u[0]))
         if result.status.value == "slack" and _nearest_point(message_scan) > NEAR:

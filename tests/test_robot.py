@@ -3,6 +3,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from safenav import (
     PRESET_NAMES,
@@ -22,6 +24,7 @@ from safenav import (
     preset,
 )
 from safenav.geometry import wrap_angle
+from safenav.robot import ANGLE_TOLERANCE
 from safenav.synthetic import Scene, box, synthetic_scan, wall
 
 
@@ -379,3 +382,29 @@ def test_the_your_own_robot_example_runs_and_catches_the_wrong_preset(capsys):
     scan = robot.match_scan(LaserScan.from_msg(namespace["lds01_message"](2.0)))
     assert scan.mount == Pose2D(-0.032, 0.0, 0.0)
     assert scan.readings[180] == Reading.NO_RETURN                  # the driver's 0.0 read as "nothing there"
+
+
+lidar_layouts = st.fixed_dictionaries({
+    "n_beams": st.integers(2, 1500),
+    "angle_min": st.floats(-math.pi, 0.0),
+    "span": st.floats(0.5, 2 * math.pi),
+    "mount": st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-math.pi, math.pi)),
+    "range_min": st.floats(0.0, 0.5),
+})
+
+
+@given(lidar_layouts)
+def test_any_lidars_own_scans_match_it_and_a_shifted_layout_does_not(layout):
+    lidar = LidarSpec(n_beams=layout["n_beams"], angle_min=layout["angle_min"],
+                      angle_max=layout["angle_min"] + layout["span"], range_min=layout["range_min"],
+                      range_max=layout["range_min"] + 10.0, mount=Pose2D(*layout["mount"]))
+    robot = preset("puzzlebot").replace(lidar=lidar)
+    template = lidar.scan()
+    as_published = template.replace(mount=None, **{                       # float32 fields, as in a message
+        name: float(np.float32(getattr(template, name))) for name in
+        ("angle_min", "angle_max", "angle_increment", "range_min", "range_max")})
+    matched = robot.match_scan(as_published)
+    assert matched.mount == lidar.mount and matched.ranges is as_published.ranges
+    with pytest.raises(LidarMismatch, match="angle_min"):
+        robot.match_scan(template.replace(mount=None, angle_min=lidar.angle_min + 2 * ANGLE_TOLERANCE,
+                                          angle_max=lidar.angle_max + 2 * ANGLE_TOLERANCE))
