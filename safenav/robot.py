@@ -44,13 +44,12 @@ from safenav.errors import (
     InvalidCommandType,
     InvalidConfig,
     InvalidScan,
-    InvalidScanType,
     LidarMismatch,
     LidarMismatchWarning,
 )
 from safenav.geometry import Pose2D, wrap_angle
 from safenav.pointcloud import CloudSlice
-from safenav.scan import NO_RETURN_CONVENTIONS, LaserScan
+from safenav.scan import NO_RETURN_CONVENTIONS, LaserScan, check_scan
 
 __all__ = [
     "ANGLE_TOLERANCE",
@@ -405,10 +404,7 @@ class RobotSpec:
                 it cannot be placed). The message names both values and the fix.
             InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
         """
-        if not isinstance(scan, LaserScan):
-            raise InvalidScanType(
-                f"scan must be a safenav LaserScan (use LaserScan.from_msg for ROS messages), got {type(scan).__name__}"
-            )
+        check_scan(scan)
         key = (scan.frame_id, scan.n_beams, scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max,
                scan.no_return)
         matches = self._layout_matches

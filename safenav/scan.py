@@ -81,6 +81,7 @@ __all__ = [
     "Reading",
     "SectorReading",
     "SectorState",
+    "check_scan",
     "radians",
     "stamp_seconds",
 ]
@@ -707,6 +708,15 @@ class LaserScan:
             f"angle_increment={self.angle_increment:.6f}, range=[{self.range_min:g}, {self.range_max:g}] m, "
             f"mount={mount}{no_return}, {summary})"
         )
+
+
+def check_scan(scan: Any, name: str = "scan") -> LaserScan:
+    """``scan`` if it is a :class:`LaserScan`, else :class:`~safenav.errors.InvalidScanType` saying how to make one."""
+    if not isinstance(scan, LaserScan):
+        raise InvalidScanType(
+            f"{name} must be a safenav LaserScan (use LaserScan.from_msg for ROS messages), got {type(scan).__name__}"
+        )
+    return scan
 
 
 def _sector_width(lo: float, hi: float) -> float:
