@@ -169,6 +169,9 @@ class LidarSpec:
             raise InvalidConfig(f"LidarSpec.frame_id must be a non-empty string, got {self.frame_id!r}")
         if self.no_return is not None:
             choice("LidarSpec.no_return convention", self.no_return, NO_RETURN_CONVENTIONS)
+        if self.mount is None:
+            raise InvalidConfig("LidarSpec.mount must be a pose (x [m], y [m], yaw [rad]) of the laser on the base, "
+                                "got None")
         if self.cloud is not None and not isinstance(self.cloud, CloudSlice):
             raise InvalidConfig(f"LidarSpec.cloud must be a CloudSlice or None, got {self.cloud!r}")
         # The template scan validates angles (radians), range limits and the mount.
@@ -442,7 +445,7 @@ class RobotSpec:
         if (cause, frame_id) in self._warned_mismatches:
             return
         self._warned_mismatches.add((cause, frame_id))
-        warnings.warn(f"{message} (warned once per robot and cause)", LidarMismatchWarning, stacklevel=4)
+        warnings.warn(f"{message} (warned once per robot and cause)", LidarMismatchWarning, stacklevel=3)
 
     def _match_layout(self, scan: LaserScan) -> _LayoutMatch:
         """The lidar of ``scan``'s frame and how the scan's layout contradicts it."""

@@ -268,7 +268,7 @@ def test_strict_false_warns_once_per_cause_and_uses_the_scans_own_mount_or_the_l
         first = robot.match_scan(puzzle, strict=False)
         robot.match_scan(puzzle, strict=False)
         robot.match_scan(message_scan("puzzlebot", np.ones(360)), strict=False)
-    assert len(caught) == 1
+    assert len(caught) == 1 and caught[0].filename == __file__          # points at the caller
     assert first.mount == robot.lidar.mount and first.ranges is puzzle.ranges
     with pytest.warns(LidarMismatchWarning, match="contradicts the mount") as caught:
         own = robot.match_scan(message_scan("puzzlebot", mount=(0.1, 0.0, 0.0)), strict=False)
@@ -350,6 +350,7 @@ def test_bad_extra_lidars_raise(changes, fragment):
     ("changes", "exception", "fragment"),
     [
         (dict(frame_id=""), InvalidConfig, "LidarSpec.frame_id must be a non-empty string"),
+        (dict(mount=None), InvalidConfig, "LidarSpec.mount must be a pose (x [m], y [m], yaw [rad])"),
         (dict(no_return="0"), UnknownName,
          "unknown LidarSpec.no_return convention '0'; expected one of: range_max, zero"),
         (dict(noise_std=-0.01), InvalidConfig, "LidarSpec.noise_std must be a finite number >= 0, got -0.01"),
