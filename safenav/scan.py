@@ -81,8 +81,8 @@ __all__ = [
     "Reading",
     "SectorReading",
     "SectorState",
+    "check_radians",
     "check_scan",
-    "radians",
     "stamp_seconds",
 ]
 
@@ -199,7 +199,7 @@ def _is_unstated(mount: Any) -> bool:
     return mount is None or (type(mount) is _UnstatedMount and tuple(mount) == (0.0, 0.0, 0.0))
 
 
-def radians(name: str, value: Any, *, error: type[SafeNavError] = InvalidScan) -> float:
+def check_radians(name: str, value: Any, *, error: type[SafeNavError] = InvalidScan) -> float:
     """``value`` as a finite angle [rad] within one turn, or ``error`` naming ``name``.
 
     No angle of a planar scan or mount needs more than one turn, so ``|value| > 2*pi`` is
@@ -735,4 +735,4 @@ def _pose(name: str, pose: Any) -> Pose2D:
     if not isinstance(pose, Sequence) or isinstance(pose, (str, bytes)) or len(pose) != 3:
         raise InvalidScanType(f"{name} must be a pose (x, y, yaw), got {pose!r}")
     x, y, yaw = (_real(f"{name}.{axis}", value) for axis, value in zip(Pose2D._fields, pose, strict=True))
-    return Pose2D(x, y, radians(f"{name}.yaw", yaw))
+    return Pose2D(x, y, check_radians(f"{name}.yaw", yaw))
