@@ -409,3 +409,29 @@ def test_any_lidars_own_scans_match_it_and_a_shifted_layout_does_not(layout):
     with pytest.raises(LidarMismatch, match="angle_min"):
         robot.match_scan(template.replace(mount=None, angle_min=lidar.angle_min + 2 * ANGLE_TOLERANCE,
                                           angle_max=lidar.angle_max + 2 * ANGLE_TOLERANCE))
+
+
+@pytest.mark.parametrize("robot_name", PRESET_NAMES)
+def test_a_closed_loop_from_2_m_with_scans_without_mount_stops_before_the_wall(robot_name):
+    from safenav.filters import CBFSafetyFilter
+    from safenav.geometry import unicycle_step
+
+    robot = preset(robot_name)
+    scene = Scene.of(wall(2.0))
+
+    def drive(prepare) -> float:
+        safety = CBFSafetyFilter(robot, dt=0.05)
+        pose, velocity, closest = Pose2D(), np.zeros(2), math.inf
+        for _ in range(120):
+            as_read = synthetic_scan(robot, scene, pose).replace(mount=None)      # what from_msg gives
+            velocity = safety.filter((robot.v_max, 0.0), prepare(as_read), velocity=velocity).u
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), 0.05)
+            closest = min(closest, scene.clearance((pose.x, pose.y), robot.radius))
+        return closest
+
+    matched = drive(robot.match_scan)
+    assert matched > 0.0                                         # on the robot's lidar mount: stops in time
+    if robot_name == "rosbot":                                   # left at the identity, turned 180 degrees:
+        assert drive(lambda scan: scan) < 0.0                    # drives into the wall
+    elif robot_name == "m2wr":                                   # left at the identity, 0.15 m back: the wall
+        assert drive(lambda scan: scan) > matched + 0.1          # looks 0.15 m nearer than it is
