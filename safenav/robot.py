@@ -183,6 +183,34 @@ class LidarSpec:
             put(name, getattr(template, name))
         put("mount", Pose2D(*template.mount))
 
+    @classmethod
+    def from_scan(cls, scan: LaserScan, *, mount: Pose2D | Sequence[float] | None = None, **fields: Any) -> LidarSpec:
+        """The lidar that took ``scan``: its beam layout, range limits, period, frame id and no-return convention.
+
+        The quickest way to describe a driver's lidar: read one message with
+        :meth:`LaserScan.from_msg` and add the mount, which messages do not carry.
+
+        Args:
+            scan: a scan of the lidar.
+            mount: the laser's pose on the base [m, m, rad] (tf ``base_link`` -> laser frame);
+                by default the scan's own, when it was given.
+            **fields: other :class:`LidarSpec` fields (``noise_std``, ``height``, ``cloud``).
+
+        Raises:
+            InvalidConfig: no ``mount`` and the scan has none.
+        """
+        if mount is None:
+            if not scan.mount_given:
+                raise InvalidConfig(
+                    "LidarSpec.from_scan: the scan carries no mount; pass mount=(x, y, yaw) of the laser on the base "
+                    "(tf base_link -> laser frame)"
+                )
+            mount = scan.mount
+        return cls(n_beams=scan.n_beams, angle_min=scan.angle_min,
+                   angle_max=scan.angle_min + (scan.n_beams - 1) * scan.angle_increment, range_min=scan.range_min,
+                   range_max=scan.range_max, mount=mount, scan_time=scan.scan_time, frame_id=scan.frame_id,
+                   no_return=scan.no_return, **fields)
+
     @property
     def angle_increment(self) -> float:
         """Angle between beams [rad]."""

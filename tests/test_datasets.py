@@ -489,3 +489,12 @@ def test_bag_replayed_with_the_right_description_has_no_spurious_intervention(li
         fed_back = replay(scans, "right", "fed back", speed)
         assert fed_back.spurious == 0 and fed_back.slack <= 0.05 * len(scans)
         assert fed_back.mean_speed >= 0.8 * speed                   # the robot keeps going
+
+
+@pytest.mark.parametrize("name", list(LAYOUTS))
+def test_a_lidar_described_from_the_first_scan_matches_every_scan_of_the_recording(
+        recordings: dict[str, list[RecordedScan]], name: str) -> None:
+    scans = [recorded.scan for recorded in recordings[name]]
+    mount = None if scans[0].mount_given else Pose2D()          # BreezySLAM's laser sits 0.145 m ahead
+    robot = preset("rosbot").replace(lidar=LidarSpec.from_scan(scans[0], mount=mount))
+    assert all(robot.match_scan(scan).mount_given for scan in scans)

@@ -437,3 +437,17 @@ def test_a_closed_loop_from_2_m_with_scans_without_mount_stops_before_the_wall(r
     else:                                           # the ROSbot's old bug (turned 180 degrees) is refused
         with pytest.raises(LidarMismatch, match=r"contradicts the mount"):
             CBFSafetyFilter(robot).filter((robot.v_max, 0.0), identity)
+
+
+def test_a_lidar_described_from_one_message_matches_its_scans():
+    message = message_scan("puzzlebot", np.full(360, 2.0)).replace(frame_id="base_scan", no_return="zero")
+    with pytest.raises(InvalidConfig, match="the scan carries no mount; pass mount="):
+        LidarSpec.from_scan(message)
+    lidar = LidarSpec.from_scan(message, mount=(0.05, 0.0, 0.0), noise_std=0.01)
+    assert (lidar.n_beams, lidar.frame_id, lidar.no_return, lidar.noise_std) == (360, "base_scan", "zero", 0.01)
+    assert lidar.angle_increment == pytest.approx(message.angle_increment, rel=1e-12)
+    robot = preset("puzzlebot").replace(lidar=lidar)
+    assert robot.match_scan(message).mount == Pose2D(0.05, 0.0, 0.0)
+    single = LaserScan(angle_min=0.3, angle_max=0.3, angle_increment=0.01, range_min=0.1, range_max=10.0, ranges=[1.0],
+                       mount=(0.1, 0.0, 0.0))
+    assert preset("rosbot").replace(lidar=LidarSpec.from_scan(single)).match_scan(single) is single
