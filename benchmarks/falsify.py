@@ -43,7 +43,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
 
 from safenav.filters import make_filter
 from safenav.filters.perception import START_BLIND_CLEARANCE
-from safenav.geometry import Pose2D, unicycle_step, wrap_angle
+from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
 from safenav.robot import RobotSpec, preset
 from safenav.scan import LaserScan
 from safenav.synthetic import Circle, Scene, Segment, cast
@@ -60,6 +60,8 @@ __all__ = [
 BASES = ("instant", "ramp", "ramp_limit", "lag")
 """Models of the base's velocity loop (see the module docstring)."""
 NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script")
+"""Nominal policies an episode can use (``script`` replays a fixed command sequence)."""
+SEARCHED_NOMINALS = NOMINALS[:-1]
 """Nominal policies the search drives the filter with."""
 SUBSTEPS = 20
 """Exact unicycle sub-steps per control period."""
@@ -89,6 +91,8 @@ class Episode:
         noise: range noise, uniform within ``+- noise`` [m] (inside the filters' ``2 noise_std``).
         seed: seed of the range noise.
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
+        period: how long each command is really held [s] (default ``dt``); the filter is told
+            the time (``now``), so a longer period is a late call it must plan for.
     """
 
     robot: str
@@ -105,6 +109,7 @@ class Episode:
     noise: float = 0.0
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
+    period: float | None = None
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -114,9 +119,11 @@ class Episode:
     def from_json(cls, text: str) -> Episode:
         data = json.loads(text)
         for name in ("circles", "segments"):
-            data[name] = tuple(tuple(item) for item in data.get(name, ()))
+            if name in data:
+                data[name] = tuple(tuple(item) for item in data[name])
         for name in ("params", "velocity"):
-            data[name] = tuple(data.get(name, ()))
+            if name in data:
+                data[name] = tuple(data[name])
         return cls(**data)
 
     def scene(self) -> Scene:
@@ -228,8 +235,8 @@ def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.nd
     raise ValueError(f"unknown nominal {kind!r}; expected one of {NOMINALS}")
 
 
-def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float
-                      ) -> np.ndarray:
+def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float,
+                      time_constant: float | None = None) -> np.ndarray:
     """The base's velocity at the middle of each of the :data:`SUBSTEPS` sub-steps, ``(SUBSTEPS + 1, 2)``.
 
     Row ``k < SUBSTEPS`` is the mean velocity over sub-step ``k`` (exact for every model, so the
@@ -261,7 +268,7 @@ def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: 
             means[:, axis] = (ramp_part + hold_part) / h
         return np.vstack((means, velocity[-1]))
     if base == "lag":
-        tau = dt
+        tau = dt if time_constant is None else time_constant
         decay = np.exp(-edges / tau)
         velocity = command + (start - command) * decay[:, None]
         # Mean over [a, b] of u + (w0 - u) e^{-t/tau}: u + (w0 - u) tau (e^{-a/tau} - e^{-b/tau}) / h.
@@ -284,6 +291,25 @@ def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.ra
     return template.with_ranges(ranges).replace(stamp=stamp)
 
 
+def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
+    """Distance from a disk of ``radius`` at each of ``centres`` ``(K, 2)`` to the nearest item [m]."""
+    best = np.full(centres.shape[0], math.inf)
+    segments = scene._segment_array
+    if segments.size:
+        a, b = segments[:, :2], segments[:, 2:]
+        ab = b - a
+        length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+        relative = centres[:, None, :] - a[None]
+        t = np.clip(np.einsum("kij,ij->ki", relative, ab) / length2, 0.0, 1.0)
+        nearest = a[None] + t[..., None] * ab[None]
+        best = np.minimum(best, np.min(np.hypot(*(centres[:, None, :] - nearest).transpose(2, 0, 1)), axis=1))
+    circles = scene._circle_array
+    if circles.size:
+        gaps = np.hypot(centres[:, None, 0] - circles[None, :, 0], centres[:, None, 1] - circles[None, :, 1])
+        best = np.minimum(best, np.min(gaps - circles[None, :, 2], axis=1))
+    return best - radius
+
+
 def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[str, Any]]]:
     """Simulate ``episode``; returns its outcome and, with ``record``, one dict per period."""
     robot = preset(episode.robot)
@@ -303,10 +329,12 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     start_barrier = math.nan
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
-    steps = round(episode.duration / dt)
-    h = dt / SUBSTEPS
+    period = episode.period if episode.period is not None else dt
+    steps = round(episode.duration / period)
+    h = period / SUBSTEPS
+    clearance = min_clearance
     for step in range(steps):
-        t = step * dt
+        t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
         u_nom = policy(t, scan.points())
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
@@ -315,16 +343,16 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
         command = np.asarray(result.u, dtype=float)
-        profile = _velocity_profile(episode.base, velocity, command, robot, dt)
-        for k in range(SUBSTEPS):
-            pose = unicycle_step(pose, float(profile[k, 0]), float(profile[k, 1]), h)
-            clearance = scene.clearance((pose.x, pose.y), radius)
-            if clearance < min_clearance:
-                min_clearance = clearance
-            if clearance < 0.0:
-                contact = True
-            if violation_step is None and clearance < margin - TOLERANCE:
-                violation_step = step
+        profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
+        poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
+        pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
+        clearances = _clearances(scene, poses[1:, :2], radius)
+        clearance = float(clearances[-1])
+        lowest = float(clearances.min())
+        min_clearance = min(min_clearance, lowest)
+        contact = contact or lowest < 0.0
+        if violation_step is None and lowest < margin - TOLERANCE:
+            violation_step = step
         velocity = profile[-1].copy()
         if record:
             log.append(dict(step=step, t=t, u_nom=np.asarray(u_nom, dtype=float).tolist(), u=command.tolist(),
@@ -349,15 +377,28 @@ def _unit(x: np.ndarray, i: int) -> float:
 
 GEOMETRIES = ("poles", "wall", "door", "poles_and_wall")
 """Obstacle layouts the search places around the start pose."""
-N_COORDINATES = 16
+N_COORDINATES = 18
+
+
+def _pick(unit: float, options: Sequence[str]) -> str:
+    return options[min(int(unit * len(options)), len(options) - 1)]
 
 
 def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
-           geometry: str, nominal: str, margin: float, settings: dict[str, Any] | None = None) -> Episode:
-    """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle."""
+           geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
+           settings: dict[str, Any] | None = None) -> Episode:
+    """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
+
+    ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
+    and 17 of the vector choose (so one search covers them all).
+    """
     spec = preset(robot)
     R = spec.radius
     u = [_unit(x, i) for i in range(N_COORDINATES)]
+    if not isinstance(geometry, str):
+        geometry = _pick(u[16], geometry)
+    if not isinstance(nominal, str):
+        nominal = _pick(u[17], nominal)
     keep_out = R + margin + 1e-3
     circles: list[tuple[float, float, float]] = []
     segments: list[tuple[float, float, float, float]] = []
@@ -477,18 +518,47 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
 
 def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str]) -> list[dict[str, Any]]:
+    """One search per robot, filter, period and base (with and without odometry for the instant
+    base); the geometry and the nominal are searched inside each."""
     cells = []
     for robot in robots:
         for filter_name in filters:
             for dt in dts:
                 for base in bases:
                     for give_velocity in ((True, False) if base == "instant" else (True,)):
-                        for geometry in geometries:
-                            for nominal in nominals:
-                                cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
-                                                  give_velocity=give_velocity, geometry=geometry,
-                                                  nominal=nominal))
+                        cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
+                                          give_velocity=give_velocity, geometry=tuple(geometries),
+                                          nominal=tuple(nominals)))
     return cells
+
+
+def _search_cell(job: tuple[dict[str, Any], int, int, str]) -> list[Found]:
+    cell, episodes, seed, optimiser = job
+    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
+    return search(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)
+
+
+def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found], dict[str, dict[str, Any]]]:
+    """Every episode found, and a summary per robot and filter; prints a line per cell as it finishes."""
+    everything: list[Found] = []
+    summary: dict[str, dict[str, Any]] = {}
+    for index, (cell, found) in enumerate(zip(cells, results, strict=True)):
+        everything.extend(found)
+        key = f"{cell['robot']}/{cell['filter_name']}"
+        entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
+                                             worst_clearance_minus_margin=math.inf))
+        for item in found:
+            entry["episodes"] += 1
+            if item.outcome.valid:
+                entry["valid"] += 1
+                entry["contacts"] += int(item.outcome.contact)
+                entry["violations"] += int(item.outcome.violated)
+                entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
+                                                            item.outcome.min_clearance - item.outcome.margin)
+        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal")}
+        print(f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m",
+              flush=True)
+    return everything, summary
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
@@ -500,9 +570,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--bases", nargs="+", default=list(BASES), choices=BASES)
     parser.add_argument("--dts", nargs="+", type=float, default=[0.02, 0.05, 0.1])
     parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
-    parser.add_argument("--nominals", nargs="+", default=list(NOMINALS), choices=NOMINALS)
+    parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
+    parser.add_argument("--workers", type=int, default=1, help="processes searching cells in parallel")
     parser.add_argument("--json", help="write the summary and the worst cases here")
     parser.add_argument("--replay", help="replay one episode given as the JSON line printed by a search")
     args = parser.parse_args(argv)
@@ -517,26 +588,15 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals)
     per_cell = max(1, args.episodes // len(cells))
     start = time.perf_counter()
-    everything: list[Found] = []
-    summary: dict[str, dict[str, Any]] = {}
-    for index, cell in enumerate(cells):
-        margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
-        found = search(cell, episodes=per_cell, seed=args.seed * 100_003 + index, margin=margin,
-                       optimiser=args.optimiser)
-        everything.extend(found)
-        key = f"{cell['robot']}/{cell['filter_name']}"
-        entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
-                                             worst_clearance_minus_margin=math.inf))
-        for item in found:
-            entry["episodes"] += 1
-            if item.outcome.valid:
-                entry["valid"] += 1
-                entry["contacts"] += int(item.outcome.contact)
-                entry["violations"] += int(item.outcome.violated)
-                entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
-                                                            item.outcome.min_clearance - item.outcome.margin)
-        print(f"[{index + 1}/{len(cells)}] {cell} worst {min(f.outcome.objective for f in found):+.4f} m",
-              flush=True)
+    jobs = [(cell, per_cell, args.seed * 100_003 + index, args.optimiser) for index, cell in enumerate(cells)]
+    if args.workers > 1:
+        import multiprocessing
+
+        with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+            results = pool.imap(_search_cell, jobs)
+            everything, summary = _collect(cells, results)
+    else:
+        everything, summary = _collect(cells, map(_search_cell, jobs))
     elapsed = time.perf_counter() - start
     print()
     print("| robot/filter | episodes | valid | contacts | below margin - 1 cm | worst clearance - margin [m] |")
