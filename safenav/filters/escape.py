@@ -37,7 +37,7 @@ import numpy as np
 from safenav import _checks
 from safenav.filters.base import FilterResult, Reason, SafetyFilter, as_scans
 from safenav.geometry import wrap_angle
-from safenav.robot import as_command
+from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
 __all__ = ["Escape", "EscapeConfig"]
@@ -105,7 +105,7 @@ class Escape:
         self._since = math.inf  # time since the last escape ended [s]
 
     @property
-    def robot(self):  # noqa: ANN201 - the wrapped filter's RobotSpec
+    def robot(self) -> RobotSpec:
         return self.inner.robot
 
     @property
@@ -154,7 +154,8 @@ class Escape:
         self._elapsed += held
         self._turned = float(wrap_angle(self._turned + result.u[1] * held))
         side = "left" if self._side > 0 else "right"
-        doing = ("backing out" if self._backing > 0.0 else f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}")
+        doing = "backing out" if self._backing > 0.0 else \
+            f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
         description = f"{doing}, turning {side}, for {self._elapsed:.1f} s"
         reason = Reason("escape", f"deadlocked: {description}; command ({command[0]:.2f}, {command[1]:.2f}) sent "
                                   f"through the {self.inner.name} filter", None if result.reason is None
