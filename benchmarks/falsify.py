@@ -12,7 +12,9 @@ from seeded random starts, minimising
 with the filter's own minimum barrier as a tie-breaker. Each episode starts inside the
 assumptions: every obstacle at least ``margin`` from the body and the filter's barrier
 ``H >= 0`` on its first call. A violation is a contact, or a clearance below
-``margin - tolerance`` (1 cm). Every worst case is printed with a one-line reproduction::
+``margin - tolerance`` (1 cm). (The start must also be recoverable: a robot that starts already
+moving must get a first answer without slack; starting at rest always does.) Every worst case
+is printed with a one-line reproduction::
 
     python -m benchmarks.falsify --episodes 2000 --seed 0 --json falsify.json
     python -m benchmarks.falsify --replay '{"robot": "m2wr", ...}'
@@ -159,15 +161,17 @@ class Outcome:
     steps: int
 
     hidden_at_start: bool = False
+    start_status: str = "ok"
     deadlock_time: float = 0.0
     escape_steps: int = 0
     goal_distance: float | None = None
 
     @property
     def valid(self) -> bool:
-        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, and nothing
-        hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
-        return self.start_barrier >= 0.0 and not self.hidden_at_start
+        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, a first answer
+        that needs no slack (a robot already moving can still stop: starting at rest always can), and
+        nothing hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
+        return self.start_barrier >= 0.0 and not self.hidden_at_start and self.start_status in ("ok", "late")
 
     @property
     def violated(self) -> bool:
@@ -346,6 +350,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     violation_step = None
     statuses: dict[str, int] = {}
     start_barrier = math.nan
+    start_status = ""
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
     period = episode.period if episode.period is not None else dt
@@ -359,6 +364,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
+            start_status = result.status.value
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
         if result.deadlock is not None:
@@ -388,8 +394,8 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     if episode.nominal == "goal":
         goal_distance = math.hypot(episode.params[0] - pose.x, episode.params[1] - pose.y)
     outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
-                      statuses, step + 1, hidden_at_start(robot, scene, margin), deadlock_time, escape_steps,
-                      goal_distance)
+                      statuses, step + 1, hidden_at_start(robot, scene, margin), start_status, deadlock_time,
+                      escape_steps, goal_distance)
     return outcome, log
 
 

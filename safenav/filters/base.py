@@ -153,10 +153,10 @@ class Deadlock:
 def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
     """How much of the nominal's motion ``u`` keeps, in ``[-inf, 1]`` (1 for ``u = u_nom``).
 
-    Commands are compared as fractions of the velocity limits ``scale``; the progress is the
-    projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
+    Commands are compared as fractions of the velocity limits ``scale``, the nominal clipped to
+    them; the progress is the projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
     """
-    nominal = u_nom / scale
+    nominal = np.clip(u_nom / scale, -1.0, 1.0)
     size = float(nominal @ nominal)
     if size <= 0.0:
         return 1.0
@@ -446,7 +446,8 @@ class SafetyFilter(abc.ABC):
     def _watch_progress(self, result: FilterResult) -> FilterResult:
         """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""
         scale = self.robot.upper
-        wants = bool(np.all(np.isfinite(result.u_nom))) and float(np.max(np.abs(result.u_nom) / scale)) > STILL
+        nominal = result.u_nom
+        wants = bool(np.all(np.isfinite(nominal))) and float(np.max(np.minimum(np.abs(nominal), scale) / scale)) > STILL
         if not wants or progress(result.u, result.u_nom, scale) >= STALL_PROGRESS:
             self._stalled = 0.0
             return result
