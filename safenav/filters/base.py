@@ -600,8 +600,13 @@ class SafetyFilter(abc.ABC):
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
-        noise = max(scan_noise(self.robot), 0.0)
-        recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
+        if frontier.complete:
+            # Every direction round the body is seen now: a remembered point is either seen again or
+            # occluded, and an occluded point cannot be the first to come within the margin.
+            recalled, uncertainty = np.empty((0, 2)), np.empty(0)
+        else:
+            noise = max(scan_noise(self.robot), 0.0)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((current, recalled)) if recalled.shape[0] else current
         return View(scans, points, np.concatenate((np.zeros(current.shape[0]), uncertainty)), current.shape[0],
