@@ -1,0 +1,480 @@
+"""The safety node without its middleware: inputs, the timer step, state and diagnostics.
+
+:class:`SafetyCore` is everything the ROS 2 and ROS 1 nodes share. A transport
+(:mod:`safenav.ros.ros2`, :mod:`safenav.ros.ros1`) only subscribes, keeps time and publishes:
+it hands every message to :meth:`SafetyCore.on_scan`, :meth:`~SafetyCore.on_command` and
+:meth:`~SafetyCore.on_odometry`, calls :meth:`~SafetyCore.tick` every control period (and, with
+``step_on_scan``, when a scan arrives), and implements :class:`Outputs`.
+
+What one tick does, in order of precedence:
+
+==========================================  ===============  =======================================
+situation                                   ``status``       command published
+==========================================  ===============  =======================================
+no ``cmd_vel_in`` received yet              ``idle``         none
+``cmd_vel_in`` older than its timeout       ``idle``         zero once, then none
+``~/enable`` set false                      ``disabled``     the input, unchanged
+a source never received                     ``waiting``      brake
+a source's last message malformed           ``bad_message``  brake
+a source older than its timeout             ``stale``        brake
+odometry missing, stale or malformed        ``stale``        brake
+otherwise                                   the filter's     the filter's command
+==========================================  ===============  =======================================
+
+"Brake" is the command nearest a stop that the acceleration limits allow from the measured
+velocity (zero without odometry). A zero command is published once and then the node stays
+silent until the command changes (the collision monitor's ``stop_pub_timeout``), so a
+velocity multiplexer behind it can hand over. The node never raises from a callback: a bad
+message brakes, is logged once per cause, and is reported in the state.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple, Protocol
+
+import numpy as np
+
+from safenav.errors import InvalidConfig, InvalidScanType, SafeNavError
+from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, make_filter
+from safenav.ros.messages import twist_of
+from safenav.ros.params import NodeConfig
+from safenav.ros.sources import SOURCE_TYPES, Source
+from safenav.scan import LaserScan
+
+__all__ = ["DEADLOCK_AFTER", "CauseLog", "NodeState", "Outputs", "SafetyCore", "Timed"]
+
+DEADLOCK_AFTER = 2.0
+"""Seconds the filter may hold a moving nominal at a standstill before the state says ``deadlock``."""
+
+DIAGNOSTICS_PERIOD = 1.0
+"""Seconds between two ``/diagnostics`` messages while the status does not change."""
+
+LATE_FACTOR = 1.5
+"""A tick later than this many control periods after the previous one is reported as late."""
+
+_MOVING = 1e-3  # a command component above this [m/s or rad/s] counts as motion
+
+# Statuses of the node itself (the filter's are FilterStatus values).
+IDLE, DISABLED, WAITING, BAD_MESSAGE, STALE, ERROR = "idle", "disabled", "waiting", "bad_message", "stale", "error"
+_ERROR_STATUSES = frozenset({WAITING, BAD_MESSAGE, STALE, ERROR, *(s.value for s in BRAKING_STATUSES)})
+_WARN_STATUSES = frozenset({IDLE, DISABLED, "recovering", "slack"})
+
+
+class Timed(NamedTuple):
+    """A value and the node time it arrived [s]; ``perf`` is ``time.perf_counter()`` at arrival."""
+
+    value: Any
+    time: float
+    perf: float
+
+
+class CauseLog:
+    """Logs each cause of trouble once, and once more when it clears.
+
+    Args:
+        warn: logs a warning line.
+        info: logs an information line.
+    """
+
+    def __init__(self, warn: Callable[[str], None], info: Callable[[str], None]) -> None:
+        self._warn = warn
+        self._info = info
+        self.active: dict[str, str] = {}
+
+    def report(self, cause: str, text: str) -> None:
+        """Log ``text`` unless ``cause`` is already active."""
+        if cause not in self.active:
+            self._warn(text)
+        self.active[cause] = text
+
+    def clear(self, cause: str) -> None:
+        """End ``cause`` (logged once) so that it is logged again if it comes back."""
+        if self.active.pop(cause, None) is not None:
+            self._info(f"cleared: {cause}")
+
+    def clear_prefix(self, prefix: str, keep: str = "") -> None:
+        """End every active cause starting with ``prefix`` except ``keep``."""
+        for cause in [c for c in self.active if c.startswith(prefix) and c != keep]:
+            self.clear(cause)
+
+
+@dataclass(frozen=True)
+class NodeState:
+    """What the node did at one tick: published on ``~/state`` (as JSON) and in ``/diagnostics``.
+
+    Attributes:
+        time: node time of the tick [s].
+        status: the node's status (see the module table) or the filter's
+            (:class:`~safenav.filters.FilterStatus` value).
+        reason: why, in words; empty when ``status`` is ``ok``.
+        enabled: filtering is on.
+        published: a command left at this tick (``False`` while silent).
+        u_nom: the input command ``(v [m/s], omega [rad/s])``, ``None`` before the first.
+        u: the command the node decided ``(v, omega)``, ``None`` when it decided none.
+        intervened: ``u`` differs from ``u_nom``.
+        min_barrier: the filter's smallest barrier value [m] (``None``: no constraint, or no filter call).
+        clearance: distance from the body disk to the nearest point seen [m] (``None``: none seen).
+        active_points: number of constraints that hold with equality.
+        solver: QP or NLP back-end of the filter call.
+        filter_time: time spent in the filter [s].
+        period: measured time since the previous tick [s] (``None`` at the first).
+        trigger: ``"timer"`` or ``"scan"`` (a fresh scan of the first source).
+        latency: time from the triggering scan's arrival to the command leaving [s]
+            (``None`` for timer ticks or without a command).
+        source_ages: age of each source's latest message [s] (``None``: never received).
+        odom_age: age of the latest odometry [s] (``None``: none, or no odometry topic).
+        stuck_for: how long the filter has held a moving nominal at a standstill [s].
+        deadlock: ``stuck_for`` reached :data:`DEADLOCK_AFTER`.
+    """
+
+    time: float
+    status: str
+    reason: str = ""
+    enabled: bool = True
+    published: bool = False
+    u_nom: tuple[float, float] | None = None
+    u: tuple[float, float] | None = None
+    intervened: bool = False
+    min_barrier: float | None = None
+    clearance: float | None = None
+    active_points: int = 0
+    solver: str = ""
+    filter_time: float = 0.0
+    period: float | None = None
+    trigger: str = "timer"
+    latency: float | None = None
+    source_ages: dict[str, float | None] = field(default_factory=dict)
+    odom_age: float | None = None
+    stuck_for: float = 0.0
+    deadlock: bool = False
+
+    @property
+    def level(self) -> int:
+        """``diagnostic_msgs/DiagnosticStatus`` level: 0 OK, 1 WARN, 2 ERROR."""
+        if self.status in _ERROR_STATUSES:
+            return 2
+        return 1 if self.status in _WARN_STATUSES or self.deadlock else 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """The state as JSON-safe values (non-finite numbers become ``None``)."""
+        return {name: _json_safe(value) for name, value in self.__dict__.items()}
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    return value
+
+
+def _finite_or_none(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+class Outputs(Protocol):
+    """What a transport publishes for the core."""
+
+    def command(self, u: tuple[float, float]) -> None:
+        """Publish ``u = (v [m/s], omega [rad/s])`` on the output topic."""
+
+    def state(self, state: NodeState) -> None:
+        """Publish ``state`` on ``~/state``."""
+
+    def diagnostics(self, state: NodeState) -> None:
+        """Publish ``state`` on ``/diagnostics``."""
+
+    def markers(self, footprint: np.ndarray, points: np.ndarray, active: np.ndarray) -> None:
+        """Publish the footprint outline, the constraint points and the active ones (base frame [m])."""
+
+
+class SafetyCore:
+    """The safety node's logic, shared by every transport.
+
+    Args:
+        config: the node's configuration.
+        warn: logs a warning line (each cause once).
+        info: logs an information line.
+
+    Raises:
+        InvalidConfig: a filter setting is out of range, or several sources are configured for
+            a filter that reads one scan per call.
+    """
+
+    def __init__(self, config: NodeConfig, *, warn: Callable[[str], None] = print,
+                 info: Callable[[str], None] = print) -> None:
+        self.config = config
+        self.robot = config.robot
+        self.filter: SafetyFilter = make_filter(config.filter, config.robot, config.control_period,
+                                                **config.filter_kwargs())
+        self.sources: dict[str, Source] = {s.name: SOURCE_TYPES[s.type](s) for s in config.sources}
+        if len(self.sources) > 1 and not _takes_several_scans(self.filter, self.robot.scan()):
+            raise InvalidConfig(f"parameter sources lists {len(self.sources)} sources, but this filter reads one "
+                                f"scan per call; list one source")
+        self.causes = CauseLog(warn, info)
+        self.enabled = config.enabled
+        self._scans: dict[str, Timed | None] = dict.fromkeys(self.sources)
+        self._bad: dict[str, str] = {}
+        self._command: Timed | None = None
+        self._odometry: Timed | None = None
+        self._last_tick: float | None = None
+        self._last_published: tuple[float, float] | None = None
+        self._stuck_since: float | None = None
+        self._last_diagnostics: tuple[float, str] | None = None
+        self.state = NodeState(time=0.0, status=IDLE, reason="no cmd_vel_in received yet", enabled=self.enabled)
+        self.last_result: FilterResult | None = None
+
+    # ------------------------------------------------------------------ inputs
+
+    @property
+    def trigger_source(self) -> str:
+        """The source whose arrivals trigger a tick with ``step_on_scan`` (the first listed)."""
+        return self.config.sources[0].name
+
+    def on_scan(self, source: str, msg: Any, now: float) -> bool:
+        """Keep the latest message of ``source``; whether the transport should tick now.
+
+        A malformed message replaces the source's scan with nothing (the robot brakes until a
+        good one arrives) and is logged once.
+        """
+        perf = time.perf_counter()
+        try:
+            scan = self.sources[source].convert(msg)
+        except (SafeNavError, ValueError, TypeError, AttributeError) as error:
+            self._scans[source] = None
+            self._bad[source] = f"source {source!r}: malformed message: {error}"
+            self.causes.report(f"bad message on {source}", self._bad[source])
+            return False
+        self._bad.pop(source, None)
+        self.causes.clear(f"bad message on {source}")
+        self._scans[source] = Timed(scan, now, perf)
+        return self.config.step_on_scan and source == self.trigger_source
+
+    def on_command(self, msg: Any, now: float) -> None:
+        """Keep the latest nominal command (``Twist``, or ``TwistStamped`` with ``stamped``)."""
+        try:
+            u = twist_of(msg.twist if self.config.stamped else msg)
+        except (AttributeError, TypeError, ValueError) as error:
+            self.causes.report("bad cmd_vel_in", f"malformed {self.config.cmd_vel_in_topic} message ignored: {error}")
+            return
+        self.causes.clear("bad cmd_vel_in")
+        self._command = Timed(u, now, time.perf_counter())
+
+    def on_odometry(self, msg: Any, now: float) -> None:
+        """Keep the latest measured velocity from a ``nav_msgs/Odometry`` message."""
+        try:
+            velocity = twist_of(msg.twist.twist)
+        except (AttributeError, TypeError, ValueError) as error:
+            self._odometry = None
+            self.causes.report("bad odometry", f"malformed {self.config.odom_topic} message: {error}")
+            return
+        self.causes.clear("bad odometry")
+        self._odometry = Timed(velocity, now, time.perf_counter())
+
+    def set_enabled(self, enabled: bool) -> str:
+        """Switch filtering on or off (``~/enable``); the answer's message."""
+        self.enabled = bool(enabled)
+        if self.enabled:
+            self.causes.clear("disabled")
+            return "safety filter enabled"
+        self.causes.report("disabled", "safety filter DISABLED: cmd_vel_in passes through unchanged")
+        return "safety filter disabled: commands pass through unchanged"
+
+    # ------------------------------------------------------------------ the step
+
+    def tick(self, now: float, outputs: Outputs, trigger: str = "timer") -> NodeState:
+        """Decide and publish one command; publish the state (and diagnostics, markers).
+
+        Never raises for bad input: whatever goes wrong brakes and shows in the state.
+        """
+        period = None if self._last_tick is None else now - self._last_tick
+        self._last_tick = now
+        if period is not None and period > LATE_FACTOR * self.config.control_period:
+            self.causes.report("late", f"tick {period:.3f} s after the previous one; control period "
+                                       f"{self.config.control_period:.3f} s (is the machine overloaded?)")
+        elif period is not None:
+            self.causes.clear("late")
+        trigger_scan = self._scans.get(self.trigger_source) if trigger == "scan" else None
+        try:
+            state = self._decide(now)
+        except Exception as error:  # the node must brake, not die, on anything unforeseen
+            self.causes.report("error", f"filter error, braking: {type(error).__name__}: {error}")
+            state = NodeState(time=now, status=ERROR, reason=f"{type(error).__name__}: {error}",
+                              u=(0.0, 0.0), u_nom=self._command.value if self._command else None)
+        else:
+            self.causes.clear("error")
+        published = False
+        if state.u is not None and not (state.u == (0.0, 0.0) and self._last_published == (0.0, 0.0)):
+            outputs.command(state.u)
+            published = True
+        if state.u is not None or self._last_published is None:
+            self._last_published = state.u
+        latency = time.perf_counter() - trigger_scan.perf if published and trigger_scan else None
+        state = _replace(state, published=published, period=period, trigger=trigger, latency=latency,
+                         **self._ages(now), **self._stuck(now, state))
+        self.state = state
+        outputs.state(state)
+        if self._diagnostics_due(now, state.status):
+            outputs.diagnostics(state)
+        if self.config.markers and self.last_result is not None:
+            result = self.last_result
+            outputs.markers(self.footprint(), result.constraint_points, result.constraint_points[list(result.active)])
+        return state
+
+    def _decide(self, now: float) -> NodeState:
+        """The command for this tick and why (before publishing)."""
+        config = self.config
+        enabled = self.enabled
+        if self._command is None:
+            return NodeState(time=now, status=IDLE, reason=f"no {config.cmd_vel_in_topic} received yet",
+                             enabled=enabled)
+        u_nom = self._command.value
+        command_age = now - self._command.time
+        if command_age > config.cmd_vel_timeout:
+            reason = (f"{config.cmd_vel_in_topic} is {command_age:.2f} s old (timeout {config.cmd_vel_timeout:g} s): "
+                      f"zero once, then silent")
+            self.causes.report("cmd_vel_in timeout", reason)
+            return NodeState(time=now, status=IDLE, reason=reason, enabled=enabled, u_nom=u_nom, u=(0.0, 0.0),
+                             intervened=True)
+        self.causes.clear("cmd_vel_in timeout")
+        if not enabled:
+            return NodeState(time=now, status=DISABLED, reason="filter disabled by ~/enable: passing through",
+                             enabled=False, u_nom=u_nom, u=u_nom)
+        velocity, odometry_problem = self._velocity(now)
+        scans, ages, source_problem = self._fresh_scans(now)
+        problem = source_problem or odometry_problem
+        if problem is not None:
+            status, reason = problem
+            self.causes.report(f"{status}: {reason.split(':')[0]}", f"braking: {reason}")
+            self.causes.clear_prefix(f"{status}: ", keep=f"{status}: {reason.split(':')[0]}")
+            brake = self.robot.brake(velocity, config.control_period if velocity is not None else None)
+            return NodeState(time=now, status=status, reason=reason, enabled=enabled, u_nom=u_nom,
+                             u=_pair(brake), intervened=True)
+        for status in (WAITING, BAD_MESSAGE, STALE):
+            self.causes.clear_prefix(f"{status}: ")
+        result = self._filter(u_nom, scans, velocity, ages)
+        self.last_result = result
+        status = result.status.value
+        if result.braked:
+            self.causes.report(f"filter {status}", f"filter brakes ({status}): {result.message}")
+        else:
+            for braking in BRAKING_STATUSES:
+                self.causes.clear(f"filter {braking.value}")
+        return NodeState(time=now, status=status, reason=result.message, enabled=enabled, u_nom=u_nom,
+                         u=_pair(result.u), intervened=result.modified,
+                         min_barrier=_finite_or_none(result.min_barrier), clearance=_finite_or_none(result.clearance),
+                         active_points=len(result.active), solver=result.solver, filter_time=result.filter_time)
+
+    def _filter(self, u_nom: tuple[float, float], scans: Sequence[LaserScan], velocity: np.ndarray | None,
+                ages: Sequence[float]) -> FilterResult:
+        """The one place the node calls the filter."""
+        scan = scans[0] if len(scans) == 1 else tuple(scans)
+        return self.filter.filter(u_nom, scan, velocity=velocity, scan_age=max(ages))
+
+    def _velocity(self, now: float) -> tuple[np.ndarray | None, tuple[str, str] | None]:
+        """The measured velocity, or the reason odometry is missing or stale."""
+        topic = self.config.odom_topic
+        if not topic:
+            return None, None
+        if self._odometry is None:
+            return None, (STALE, f"odometry: no valid {topic} message received")
+        age = now - self._odometry.time
+        if age > self.config.odom_timeout:
+            return None, (STALE, f"odometry: {topic} is {age:.2f} s old (timeout {self.config.odom_timeout:g} s)")
+        return np.asarray(self._odometry.value, dtype=float), None
+
+    def _fresh_scans(self, now: float) -> tuple[list[LaserScan], list[float], tuple[str, str] | None]:
+        """The latest scan of every source and its age, or the first reason one cannot be used.
+
+        A scan's age is the larger of the time since it arrived and the time since its header
+        stamp (when the stamp is set), so neither a late delivery nor a skewed clock hides it.
+        """
+        scans, ages = [], []
+        for config in self.config.sources:
+            name = config.name
+            if name in self._bad:
+                return [], [], (BAD_MESSAGE, self._bad[name])
+            latest = self._scans[name]
+            if latest is None:
+                return [], [], (WAITING, f"source {name!r}: no message on {config.topic} yet")
+            scan = latest.value
+            age = now - latest.time
+            if scan.stamp:
+                age = max(age, now - scan.stamp)
+            if age > config.timeout:
+                return [], [], (STALE, f"source {name!r}: {config.topic} is {age:.2f} s old "
+                                       f"(timeout {config.timeout:g} s)")
+            scans.append(scan)
+            ages.append(max(age, 0.0))
+        return scans, ages, None
+
+    def _ages(self, now: float) -> dict[str, Any]:
+        source_ages = {name: (None if latest is None else round(now - latest.time, 6))
+                       for name, latest in self._scans.items()}
+        odom_age = None if self._odometry is None else round(now - self._odometry.time, 6)
+        return {"source_ages": source_ages, "odom_age": odom_age}
+
+    def _stuck(self, now: float, state: NodeState) -> dict[str, Any]:
+        """How long a moving nominal has been held at a standstill by the filter."""
+        held = (state.u_nom is not None and state.u is not None and state.enabled
+                and max(abs(state.u_nom[0]), abs(state.u_nom[1])) > _MOVING
+                and max(abs(state.u[0]), abs(state.u[1])) <= _MOVING)
+        if not held:
+            self._stuck_since = None
+            return {"stuck_for": 0.0, "deadlock": False}
+        if self._stuck_since is None:
+            self._stuck_since = now
+        stuck_for = now - self._stuck_since
+        return {"stuck_for": stuck_for, "deadlock": stuck_for >= DEADLOCK_AFTER}
+
+    def _diagnostics_due(self, now: float, status: str) -> bool:
+        last = self._last_diagnostics
+        if last is None or last[1] != status or now - last[0] >= DIAGNOSTICS_PERIOD:
+            self._last_diagnostics = (now, status)
+            return True
+        return False
+
+    def footprint(self) -> np.ndarray:
+        """The body outline in the base frame [m]: the footprint polygon, or the disk as 32 vertices."""
+        if self.robot.footprint is not None:
+            return np.asarray(self.robot.footprint, dtype=float)
+        angles = np.linspace(0.0, 2.0 * math.pi, 32, endpoint=False)
+        return self.robot.radius * np.column_stack((np.cos(angles), np.sin(angles)))
+
+    def diagnostic_values(self, state: NodeState) -> list[tuple[str, str]]:
+        """Key/value pairs of ``/diagnostics`` for ``state``."""
+        values = [("filter", self.config.filter), ("robot", self.robot.name)]
+        values += [(name, _text(value)) for name, value in state.as_dict().items()
+                   if name not in ("time", "reason")]
+        return values
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return "" if value is None else str(value)
+
+
+def _pair(u: Any) -> tuple[float, float]:
+    return float(u[0]), float(u[1])
+
+
+def _replace(state: NodeState, **changes: Any) -> NodeState:
+    return NodeState(**{**state.__dict__, **changes})
+
+
+def _takes_several_scans(safety: SafetyFilter, scan: LaserScan) -> bool:
+    """Whether ``safety.filter`` accepts a sequence of scans (the multi-source API)."""
+    try:
+        safety.filter((0.0, 0.0), (scan, scan))
+    except InvalidScanType:
+        return False
+    finally:
+        safety.reset()
+    return True

@@ -1,0 +1,266 @@
+"""``safenav-ros2``: the safety filter, the tutorial controllers and the simulator on ROS 2 (rclpy).
+
+Only transport lives here: subscriptions, timers, clocks and publishers. The logic is
+:class:`~safenav.ros.core.SafetyCore` (shared with :mod:`safenav.ros.ros1`)::
+
+    pip install "safenav[ros2]"
+    safenav-ros2 --ros-args -p robot:=rosbot -p filter:=cbf            # the safety node
+    safenav-ros2 policy stop_at_wall_buggy --robot rosbot              # a tutorial controller
+    safenav-ros2 sim --world stop_at_wall --robot rosbot               # PyBullet as the robot
+
+(also ``python -m safenav.ros.ros2 ...``). Topics (relative, so ``--ros-args -r`` remaps them):
+sources (``scan``), ``cmd_vel_in``, ``odom`` in; ``cmd_vel``, ``~/state`` (``std_msgs/String``,
+JSON), ``/diagnostics``, ``~/markers`` out; service ``~/enable`` (``std_srvs/SetBool``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from safenav._optional import require
+from safenav.errors import SafeNavError
+from safenav.ros import apps
+from safenav.ros.core import NodeState, SafetyCore
+from safenav.ros.messages import fill_markers, fill_odometry, fill_scan, fill_twist
+from safenav.ros.params import NodeConfig
+
+__all__ = ["PolicyNode", "SafetyNode", "SimNode", "main"]
+
+_PURPOSE = "safenav-ros2 (the ROS 2 node)"
+#: Parameters every rclpy node has; they are not the safety node's.
+_RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+rclpy = require("rclpy", extra="ros2", purpose=_PURPOSE)
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
+from geometry_msgs.msg import Point, Twist, TwistStamped  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.clock import Clock, ClockType  # noqa: E402
+from rclpy.executors import ExternalShutdownException  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data  # noqa: E402
+from rclpy.task import Future  # noqa: E402
+from rclpy.time import Time  # noqa: E402
+from rosgraph_msgs.msg import Clock as ClockMessage  # noqa: E402
+from sensor_msgs.msg import LaserScan as LaserScanMessage  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+from std_srvs.srv import SetBool  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
+
+_RELIABLE_DEPTH = 10
+
+
+def _message_class(package: str, name: str) -> type:
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+def _seconds(node: Node) -> float:
+    return node.get_clock().now().nanoseconds * 1e-9
+
+
+class SafetyNode(Node):
+    """The safety filter node (see :mod:`safenav.ros.core` for what each tick does).
+
+    Args:
+        name: node name.
+        cli_args: ROS arguments (``--ros-args -p ...``).
+
+    Raises:
+        SafeNavError: a parameter is invalid (the message names it).
+    """
+
+    def __init__(self, name: str = "safenav_filter", *, cli_args: Sequence[str] | None = None) -> None:
+        super().__init__(name, cli_args=list(cli_args) if cli_args else None, allow_undeclared_parameters=True,
+                         automatically_declare_parameters_from_overrides=True)
+        given = {name: parameter.value for name, parameter in self.get_parameters_by_prefix("").items()
+                 if name not in _RCLPY_PARAMETERS and not name.startswith("qos_overrides.")}
+        config = NodeConfig.from_parameters(given)
+        logger = self.get_logger()
+        self.core = SafetyCore(config, warn=logger.warning, info=logger.info)
+        twist = TwistStamped if config.stamped else Twist
+        for source in self.core.sources.values():
+            self.create_subscription(_message_class(*source.message), source.config.topic,
+                                     lambda msg, name=source.config.name: self._on_scan(name, msg),
+                                     qos_profile_sensor_data)
+        self.create_subscription(twist, config.cmd_vel_in_topic,
+                                 lambda msg: self.core.on_command(msg, _seconds(self)), _RELIABLE_DEPTH)
+        if config.odom_topic:
+            self.create_subscription(Odometry, config.odom_topic,
+                                     lambda msg: self.core.on_odometry(msg, _seconds(self)), qos_profile_sensor_data)
+        self._twist = twist
+        self._command_out = self.create_publisher(twist, config.cmd_vel_out_topic, _RELIABLE_DEPTH)
+        self._state_out = self.create_publisher(String, "~/state", _RELIABLE_DEPTH)
+        self._diagnostics_out = self.create_publisher(DiagnosticArray, "/diagnostics", _RELIABLE_DEPTH)
+        self._markers_out = self.create_publisher(MarkerArray, "~/markers", 1) if config.markers else None
+        self.create_service(SetBool, "~/enable", self._on_enable)
+        self._timer = self.create_timer(config.control_period, lambda: self.core.tick(_seconds(self), self))
+        logger.info(f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} for "
+                    f"{config.robot.name} every {config.control_period:g} s; sources: "
+                    + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
+                                for s in config.sources))
+
+    def _on_scan(self, source: str, msg: Any) -> None:
+        if self.core.on_scan(source, msg, _seconds(self)):
+            self.core.tick(_seconds(self), self, trigger="scan")
+            self._timer.reset()
+
+    def _on_enable(self, request: Any, response: Any) -> Any:
+        response.message = self.core.set_enabled(request.data)
+        response.success = True
+        return response
+
+    # ------------------------------------------------------------------ Outputs
+
+    def command(self, u: tuple[float, float]) -> None:
+        msg = self._twist()
+        if self.core.config.stamped:
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = self.core.config.base_frame
+            fill_twist(msg.twist, u)
+        else:
+            fill_twist(msg, u)
+        self._command_out.publish(msg)
+
+    def state(self, state: NodeState) -> None:
+        self._state_out.publish(String(data=json.dumps(state.as_dict())))
+
+    def diagnostics(self, state: NodeState) -> None:
+        status = DiagnosticStatus(level=bytes([state.level]), name=f"{self.get_name()}: safety filter",
+                                  message=f"{state.status}: {state.reason}" if state.reason else state.status,
+                                  hardware_id=self.core.robot.name,
+                                  values=[KeyValue(key=k, value=v) for k, v in self.core.diagnostic_values(state)])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diagnostics_out.publish(array)
+
+    def markers(self, footprint: np.ndarray, points: np.ndarray, active: np.ndarray) -> None:
+        if self._markers_out is None:
+            return
+        self._markers_out.publish(fill_markers(MarkerArray(), Marker, Point, frame_id=self.core.config.base_frame,
+                                               stamp=self.get_clock().now().to_msg(), footprint=footprint,
+                                               points=points, active=active))
+
+
+class PolicyNode(Node):
+    """A tutorial controller: one nominal command on the output topic per scan."""
+
+    def __init__(self, args: Any, *, cli_args: Sequence[str] | None = None) -> None:
+        super().__init__(f"safenav_policy_{args.name}", cli_args=list(cli_args) if cli_args else None)
+        logger = self.get_logger()
+        self.core = apps.PolicyCore(args.name, apps.robot_of(args), warn=logger.warning, info=logger.info,
+                                    **apps.policy_kwargs(args))
+        self._out = self.create_publisher(Twist, args.output, _RELIABLE_DEPTH)
+        self.create_subscription(LaserScanMessage, "scan", self._on_scan, qos_profile_sensor_data)
+        self.create_subscription(Odometry, "odom", self.core.on_odometry, qos_profile_sensor_data)
+        logger.info(f"{args.name} on {args.robot}: scan -> {args.output}")
+
+    def _on_scan(self, msg: Any) -> None:
+        self._out.publish(fill_twist(Twist(), self.core.on_scan(msg)))
+
+
+class SimNode(Node):
+    """The PyBullet simulator as a robot: ``scan`` and ``odom`` out, ``cmd_vel`` in.
+
+    The simulation advances one control period per tick of a steady (wall-clock) timer, at
+    ``--speed`` times real time. Stamps are the node's clock, or with ``--sim-time`` the
+    simulated time, also published on ``/clock``.
+    """
+
+    def __init__(self, args: Any, *, cli_args: Sequence[str] | None = None) -> None:
+        super().__init__("safenav_sim", cli_args=list(cli_args) if cli_args else None)
+        self.args = args
+        self.bridge = apps.SimBridge(args.world, apps.robot_of(args), control_period=args.control_period,
+                                     seed=args.seed)
+        self.done = Future()
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._scan_out = self.create_publisher(LaserScanMessage, "scan", qos_profile_sensor_data)
+        self._odom_out = self.create_publisher(Odometry, "odom", _RELIABLE_DEPTH)
+        self._clock_out = self.create_publisher(ClockMessage, "/clock", _RELIABLE_DEPTH) if args.sim_time else None
+        self.create_subscription(Twist, "cmd_vel", lambda msg: self.bridge.on_command(msg, self._now()),
+                                 _RELIABLE_DEPTH)
+        self._contact_logged = False
+        self.create_timer(args.control_period / args.speed, self._step, clock=self._steady)
+        self.get_logger().info(f"simulating {args.world} with {args.robot}: cmd_vel -> scan, odom")
+
+    def _now(self) -> float:
+        if self.args.sim_time:
+            return self.bridge.state.time
+        return _seconds(self)
+
+    def _stamp(self) -> Any:
+        if not self.args.sim_time:
+            return self.get_clock().now().to_msg()
+        return Time(nanoseconds=round(self.bridge.state.time * 1e9)).to_msg()
+
+    def _step(self) -> None:
+        if self.done.done():
+            return
+        state = self.bridge.step(self._now())
+        stamp = self._stamp()
+        if self._clock_out is not None:
+            self._clock_out.publish(ClockMessage(clock=stamp))
+        scan = fill_scan(LaserScanMessage(), state.scan, "laser")
+        scan.header.stamp = stamp
+        self._scan_out.publish(scan)
+        odom = fill_odometry(Odometry(), state.pose, state.velocity)
+        odom.header.stamp = stamp
+        self._odom_out.publish(odom)
+        if state.first_collision_time is not None and not self._contact_logged:
+            self._contact_logged = True
+            self.get_logger().error(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
+        if self.args.duration is not None and state.time >= self.args.duration - 1e-9:
+            self.done.set_result(self.bridge.report())
+
+
+def _run(node: Node, until: Any = None) -> None:
+    try:
+        if until is None:
+            rclpy.spin(node)
+        else:
+            rclpy.spin_until_future_complete(node, until)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``safenav-ros2 [filter | policy NAME | sim] [options] [--ros-args ...]``; the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    from rclpy.utilities import remove_ros_args
+
+    args = apps.parse_args(remove_ros_args(["safenav-ros2", *argv])[1:], "safenav-ros2")
+    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
+    rclpy.init(args=["safenav-ros2", *ros_args])
+    node: Node | None = None
+    try:
+        if args.command == "policy":
+            node = PolicyNode(args, cli_args=ros_args)
+            _run(node)
+        elif args.command == "sim":
+            node = SimNode(args, cli_args=ros_args)
+            _run(node, node.done)
+            report = node.bridge.report()
+            print(report.to_json(), flush=True)
+            if args.report is not None:
+                args.report.write_text(report.to_json())
+            node.bridge.close()
+        else:
+            node = SafetyNode(cli_args=ros_args)
+            _run(node)
+    except SafeNavError as error:
+        print(f"safenav-ros2: {error}", file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
