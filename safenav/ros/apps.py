@@ -152,6 +152,13 @@ class SimBridge:
         self._distance += math.hypot(self.state.pose.x - before.x, self.state.pose.y - before.y)
         return self.state
 
+    def finished(self, duration: float | None, stop_on_contact: bool) -> bool:
+        """Whether the run is over: ``duration`` [s] of simulated time, or a contact when asked."""
+        state = self.state
+        if stop_on_contact and state.first_collision_time is not None:
+            return True
+        return duration is not None and state.time >= duration - 1e-9
+
     def report(self) -> BridgeReport:
         """Truth about the run so far."""
         state = self.state
@@ -177,6 +184,7 @@ def parse_args(argv: Sequence[str], prog: str) -> argparse.Namespace:
     ``PROG [filter]`` runs the safety node (its settings are ROS parameters);
     ``PROG policy NAME [--robot R] [--goal X Y] [--seed S]`` a tutorial controller;
     ``PROG sim [--world W] [--robot R] [--duration S] [--report FILE] [--sim-time]`` the simulator.
+    Middleware arguments (``--ros-args ...``, ``name:=value``) must be removed first.
     """
     parser = argparse.ArgumentParser(prog=prog, description="safenav on ROS: the safety filter node, the "
                                      "tutorial controllers as nodes, and the PyBullet simulator as a robot.")
@@ -195,6 +203,7 @@ def parse_args(argv: Sequence[str], prog: str) -> argparse.Namespace:
     sim.add_argument("--control-period", type=_period, default=0.05, help="[s]")
     sim.add_argument("--duration", type=_period, default=None, help="stop after this much simulated time [s]")
     sim.add_argument("--report", type=Path, default=None, help="write the truth (contact, clearance) as JSON")
+    sim.add_argument("--stop-on-contact", action="store_true", help="end the run at the first contact")
     sim.add_argument("--sim-time", action="store_true",
                      help="publish the simulator's clock on /clock and stamp with it (run the other nodes with "
                           "use_sim_time)")

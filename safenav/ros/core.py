@@ -96,11 +96,6 @@ class CauseLog:
         if self.active.pop(cause, None) is not None:
             self._info(f"cleared: {cause}")
 
-    def clear_prefix(self, prefix: str, keep: str = "") -> None:
-        """End every active cause starting with ``prefix`` except ``keep``."""
-        for cause in [c for c in self.active if c.startswith(prefix) and c != keep]:
-            self.clear(cause)
-
 
 @dataclass(frozen=True)
 class NodeState:
@@ -226,6 +221,7 @@ class SafetyCore:
         self._last_tick: float | None = None
         self._last_published: tuple[float, float] | None = None
         self._stuck_since: float | None = None
+        self._input_cause: str | None = None
         self._last_diagnostics: tuple[float, str] | None = None
         self.state = NodeState(time=0.0, status=IDLE, reason="no cmd_vel_in received yet", enabled=self.enabled)
         self.last_result: FilterResult | None = None
@@ -249,10 +245,8 @@ class SafetyCore:
         except (SafeNavError, ValueError, TypeError, AttributeError) as error:
             self._scans[source] = None
             self._bad[source] = f"source {source!r}: malformed message: {error}"
-            self.causes.report(f"bad message on {source}", self._bad[source])
             return False
         self._bad.pop(source, None)
-        self.causes.clear(f"bad message on {source}")
         self._scans[source] = Timed(scan, now, perf)
         return self.config.step_on_scan and source == self.trigger_source
 
@@ -349,15 +343,16 @@ class SafetyCore:
         velocity, odometry_problem = self._velocity(now)
         scans, ages, source_problem = self._fresh_scans(now)
         problem = source_problem or odometry_problem
+        cause = None if problem is None else _cause(*problem)
+        if self._input_cause is not None and cause != self._input_cause:
+            self.causes.clear(self._input_cause)
+        self._input_cause = cause
         if problem is not None:
             status, reason = problem
-            self.causes.report(f"{status}: {reason.split(':')[0]}", f"braking: {reason}")
-            self.causes.clear_prefix(f"{status}: ", keep=f"{status}: {reason.split(':')[0]}")
+            self.causes.report(cause, f"braking: {reason}")
             brake = self.robot.brake(velocity, config.control_period if velocity is not None else None)
             return NodeState(time=now, status=status, reason=reason, enabled=enabled, u_nom=u_nom,
                              u=_pair(brake), intervened=True)
-        for status in (WAITING, BAD_MESSAGE, STALE):
-            self.causes.clear_prefix(f"{status}: ")
         result = self._filter(u_nom, scans, velocity, ages)
         self.last_result = result
         status = result.status.value
@@ -453,6 +448,12 @@ class SafetyCore:
         values += [(name, _text(value)) for name, value in state.as_dict().items()
                    if name not in ("time", "reason")]
         return values
+
+
+def _cause(status: str, reason: str) -> str:
+    """The log-once key of an input problem: its subject (``source 'scan'``, ``odometry``), and for a
+    malformed message what is wrong with it (ages change every tick; a malformation does not)."""
+    return f"{status}: {reason if status == BAD_MESSAGE else reason.split(':')[0]}"
 
 
 def _text(value: Any) -> str:

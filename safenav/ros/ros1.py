@@ -285,7 +285,7 @@ class SimNode:
         if state.first_collision_time is not None and not self._contact_logged:
             self._contact_logged = True
             rospy.logerr(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
-        if self.args.duration is not None and state.time >= self.args.duration - 1e-9:
+        if self.bridge.finished(self.args.duration, self.args.stop_on_contact):
             rospy.signal_shutdown("simulated duration reached")
 
 
