@@ -31,7 +31,11 @@ from safenav.ros.core import CauseLog, Timed
 from safenav.ros.messages import pose_of, twist_of
 from safenav.scan import LaserScan
 
-__all__ = ["BridgeReport", "PolicyCore", "SimBridge", "parse_args", "policy_kwargs", "robot_of"]
+__all__ = ["ROS1_DEBIAN_PACKAGES", "BridgeReport", "PolicyCore", "SimBridge", "parse_args", "policy_kwargs", "robot_of"]
+
+ROS1_DEBIAN_PACKAGES = ("ros-core", "python3-rospy", "python3-sensor-msgs", "python3-geometry-msgs", "python3-nav-msgs",
+                        "python3-std-srvs", "python3-diagnostic-msgs", "python3-visualization-msgs")
+"""Debian's packages of ROS 1 that ``safenav-ros1`` needs (ROS 1 is not on pip)."""
 
 COMMAND_TIMEOUT = 0.5
 """The simulated base stops when its last ``cmd_vel`` is older than this [s], as a base controller does."""

@@ -52,8 +52,7 @@ DEBIAN_ROS1_PATH = "/usr/lib/python3/dist-packages"
 #: The ROS 1 modules the nodes use, imported together so that none comes from ROS 2.
 _ROS1_MODULES = ("rospy", "std_msgs.msg", "sensor_msgs.msg", "geometry_msgs.msg", "nav_msgs.msg", "std_srvs.srv",
                  "diagnostic_msgs.msg", "visualization_msgs.msg", "rosgraph_msgs.msg")
-_APT_LINE = ("sudo apt-get install ros-core python3-rospy python3-sensor-msgs python3-geometry-msgs "
-             "python3-nav-msgs python3-std-srvs python3-diagnostic-msgs python3-visualization-msgs")
+_APT_LINE = f"sudo apt-get install {' '.join(apps.ROS1_DEBIAN_PACKAGES)}"
 _QUEUE = 10
 
 

@@ -25,10 +25,11 @@ from typing import Any, BinaryIO
 
 import pytest
 
+from safenav.ros.apps import ROS1_DEBIAN_PACKAGES
+
 ROOT = Path(__file__).resolve().parents[2]
 DEBIAN_ROS1 = Path("/usr/lib/python3/dist-packages/rospy/__init__.py")
-ROS1_APT = ("apt-get install ros-core python3-rospy python3-sensor-msgs python3-geometry-msgs python3-nav-msgs "
-            "python3-std-srvs python3-diagnostic-msgs python3-visualization-msgs")
+ROS1_APT = f"apt-get install {' '.join(ROS1_DEBIAN_PACKAGES)}"
 
 
 def ros2_missing() -> str | None:
