@@ -50,13 +50,17 @@ __all__ = ["DEADLOCK_AFTER", "CauseLog", "NodeState", "Outputs", "SafetyCore", "
 DEADLOCK_AFTER = 2.0
 """Seconds the filter may hold a moving nominal at a standstill before the state says ``deadlock``."""
 
+STUCK_FRACTION = 0.05
+"""The filter holds the robot at a standstill when the command makes less than this fraction of the
+nominal's motion (each axis relative to its velocity limit)."""
+
 DIAGNOSTICS_PERIOD = 1.0
 """Seconds between two ``/diagnostics`` messages while the status does not change."""
 
 LATE_FACTOR = 1.5
 """A tick later than this many control periods after the previous one is reported as late."""
 
-_MOVING = 1e-3  # a command component above this [m/s or rad/s] counts as motion
+_MOVING = 1e-3  # a nominal component above this [m/s or rad/s] asks for motion
 
 # Statuses of the node itself (the filter's are FilterStatus values).
 IDLE, DISABLED, WAITING, BAD_MESSAGE, STALE, ERROR = "idle", "disabled", "waiting", "bad_message", "stale", "error"
@@ -122,7 +126,8 @@ class NodeState:
             (``None`` for timer ticks or without a command).
         source_ages: age of each source's latest message [s] (``None``: never received).
         odom_age: age of the latest odometry [s] (``None``: none, or no odometry topic).
-        stuck_for: how long the filter has held a moving nominal at a standstill [s].
+        stuck_for: how long the filter has held a moving nominal at a standstill [s] (less than
+            :data:`STUCK_FRACTION` of the motion asked).
         deadlock: ``stuck_for`` reached :data:`DEADLOCK_AFTER`.
     """
 
@@ -417,9 +422,11 @@ class SafetyCore:
 
     def _stuck(self, now: float, state: NodeState) -> dict[str, Any]:
         """How long a moving nominal has been held at a standstill by the filter."""
-        held = (state.u_nom is not None and state.u is not None and state.enabled
-                and max(abs(state.u_nom[0]), abs(state.u_nom[1])) > _MOVING
-                and max(abs(state.u[0]), abs(state.u[1])) <= _MOVING)
+        held = False
+        if state.u_nom is not None and state.u is not None and state.enabled:
+            asked = max(abs(state.u_nom[0]) / self.robot.v_max, abs(state.u_nom[1]) / self.robot.omega_max)
+            made = max(abs(state.u[0]) / self.robot.v_max, abs(state.u[1]) / self.robot.omega_max)
+            held = max(abs(state.u_nom[0]), abs(state.u_nom[1])) > _MOVING and made <= STUCK_FRACTION * asked
         if not held:
             self._stuck_since = None
             return {"stuck_for": 0.0, "deadlock": False}

@@ -89,8 +89,8 @@ def _string(name: str, value: Any, *, empty: bool = False) -> str:
     return value
 
 
-def _duration(name: str, value: Any) -> float:
-    return _checks.duration(f"parameter {name}", value, high=_LONGEST)
+def _duration(name: str, value: Any, high: float = _LONGEST) -> float:
+    return _checks.duration(f"parameter {name}", value, high=high)
 
 
 @dataclass(frozen=True)
@@ -174,7 +174,7 @@ class NodeConfig:
         for setting in self.filter_settings:
             _checks.choice(f"{self.filter} setting", setting, known)
         put(self, "filter_settings", MappingProxyType(dict(self.filter_settings)))
-        put(self, "control_period", _duration("control_period", self.control_period))
+        put(self, "control_period", _duration("control_period", self.control_period, high=1.0))
         sources = tuple(self.sources) or (SourceConfig("scan", "scan", mount=self.robot.lidar.mount),)
         if not all(isinstance(source, SourceConfig) for source in sources):
             raise InvalidConfig(f"NodeConfig.sources must be SourceConfig objects, got {self.sources!r}")
