@@ -17,7 +17,7 @@ import argparse
 import json
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,7 +28,7 @@ from safenav.geometry import Pose2D
 from safenav.reference import POLICY_NAMES, make_policy
 from safenav.robot import PRESET_NAMES, RobotSpec, preset
 from safenav.ros.core import CauseLog, Timed
-from safenav.ros.messages import pose_of, twist_of
+from safenav.ros.messages import fill_odometry, fill_scan, pose_of, twist_of
 from safenav.scan import LaserScan
 
 __all__ = ["ROS1_DEBIAN_PACKAGES", "BridgeReport", "PolicyCore", "SimBridge", "parse_args", "policy_kwargs", "robot_of"]
@@ -136,6 +136,7 @@ class SimBridge:
         self._min_clearance = self.state.clearance
         self._distance = 0.0
         self._commands = 0
+        self._contact_logged = False
 
     def on_command(self, msg: Any, now: float) -> None:
         """Keep the latest command (a non-finite or malformed one stops the base)."""
@@ -156,6 +157,31 @@ class SimBridge:
         self._distance += math.hypot(self.state.pose.x - before.x, self.state.pose.y - before.y)
         return self.state
 
+    def publish_step(self, now: float, stamp: Callable[[float], Any], types: Mapping[str, type],
+                     publish: Mapping[str, Callable[[Any], None]], log_error: Callable[[str], None]) -> None:
+        """Advance one period and publish ``scan``, ``odom`` and, when ``publish`` has it, ``clock``.
+
+        Args:
+            now: the node's time [s] (for the command timeout).
+            stamp: the header stamp of a simulated time [s].
+            types: message classes ``"scan"``, ``"odom"`` and ``"clock"``.
+            publish: a function per topic, by the same names.
+            log_error: logs the first contact.
+        """
+        state = self.step(now)
+        stamp_now = stamp(state.time)
+        if "clock" in publish:
+            publish["clock"](types["clock"](clock=stamp_now))
+        scan = fill_scan(types["scan"](), state.scan, "laser")
+        scan.header.stamp = stamp_now
+        publish["scan"](scan)
+        odom = fill_odometry(types["odom"](), state.pose, state.velocity)
+        odom.header.stamp = stamp_now
+        publish["odom"](odom)
+        if state.first_collision_time is not None and not self._contact_logged:
+            self._contact_logged = True
+            log_error(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
+
     def finished(self, duration: float | None, stop_on_contact: bool) -> bool:
         """Whether the run is over: ``duration`` [s] of simulated time, or a contact when asked."""
         state = self.state
@@ -169,6 +195,15 @@ class SimBridge:
         return BridgeReport(world=self.sim.world.name, robot=self.robot.name, time=state.time, steps=state.steps,
                             first_collision_time=state.first_collision_time, min_clearance=self._min_clearance,
                             final_pose=tuple(state.pose), distance=self._distance, commands=self._commands)
+
+    def finish(self, path: Path | None) -> BridgeReport:
+        """Print the report as one JSON line, write it to ``path`` when given, and release the simulator."""
+        report = self.report()
+        print(report.to_json(), flush=True)
+        if path is not None:
+            path.write_text(report.to_json())
+        self.close()
+        return report
 
     def close(self) -> None:
         """Release the simulator."""

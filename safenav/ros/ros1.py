@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import json
 import os
 import sys
 import threading
@@ -36,12 +35,11 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-import numpy as np
-
 from safenav.errors import MissingDependency, SafeNavError
 from safenav.ros import apps
-from safenav.ros.core import NodeState, SafetyCore
-from safenav.ros.messages import fill_markers, fill_odometry, fill_scan, fill_twist
+from safenav.ros.core import SafetyCore
+from safenav.ros.messages import fill_twist
+from safenav.ros.outputs import MessageTypes, TopicOutputs
 from safenav.ros.params import NodeConfig
 
 __all__ = ["DEBIAN_ROS1_PATH", "PolicyNode", "SafetyNode", "SimNode", "import_ros1", "main"]
@@ -109,6 +107,9 @@ DiagnosticArray, DiagnosticStatus, KeyValue = (getattr(msgs["diagnostic_msgs.msg
                                                for n in ("DiagnosticArray", "DiagnosticStatus", "KeyValue"))
 Marker, MarkerArray = msgs["visualization_msgs.msg"].Marker, msgs["visualization_msgs.msg"].MarkerArray
 ClockMessage = msgs["rosgraph_msgs.msg"].Clock
+SIM_TYPES = {"scan": LaserScanMessage, "odom": Odometry, "clock": ClockMessage}
+MESSAGE_TYPES = MessageTypes(Twist, TwistStamped, String, DiagnosticArray, DiagnosticStatus, KeyValue, MarkerArray,
+                             Marker, Point)
 
 
 def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -163,7 +164,6 @@ class SafetyNode:
         self.core = SafetyCore(config, warn=rospy.logwarn, info=rospy.loginfo)
         self._lock = threading.Lock()
         twist = TwistStamped if config.stamped else Twist
-        self._twist = twist
         self._subscribers = [
             rospy.Subscriber(source.config.topic, getattr(msgs[f"{source.message[0]}.msg"], source.message[1]),
                              self._on_scan, callback_args=source.config.name, queue_size=1)
@@ -173,10 +173,13 @@ class SafetyNode:
         if config.odom_topic:
             self._subscribers.append(rospy.Subscriber(config.odom_topic, Odometry,
                                                       self._locked(self.core.on_odometry), queue_size=1))
-        self._command_out = rospy.Publisher(config.cmd_vel_out_topic, twist, queue_size=_QUEUE)
-        self._state_out = rospy.Publisher("~state", String, queue_size=_QUEUE)
-        self._diagnostics_out = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=_QUEUE)
-        self._markers_out = rospy.Publisher("~markers", MarkerArray, queue_size=1) if config.markers else None
+        publish = {"command": rospy.Publisher(config.cmd_vel_out_topic, twist, queue_size=_QUEUE).publish,
+                   "state": rospy.Publisher("~state", String, queue_size=_QUEUE).publish,
+                   "diagnostics": rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=_QUEUE).publish}
+        if config.markers:
+            publish["markers"] = rospy.Publisher("~markers", MarkerArray, queue_size=1).publish
+        self.outputs = TopicOutputs(self.core, MESSAGE_TYPES, publish, stamp=rospy.Time.now, level=int,
+                                    node_name=rospy.get_name())
         self._service = rospy.Service("~enable", SetBool, self._on_enable)
         self._loop = _DeadlineLoop(config.control_period, self._on_timer)
         rospy.loginfo(f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} for "
@@ -191,46 +194,16 @@ class SafetyNode:
     def _on_scan(self, msg: Any, source: str) -> None:
         with self._lock:
             if self.core.on_scan(source, msg, rospy.get_time()):
-                self.core.tick(rospy.get_time(), self, trigger="scan")
+                self.core.tick(rospy.get_time(), self.outputs, trigger="scan")
                 self._loop.restart()
 
     def _on_timer(self) -> None:
         with self._lock:
-            self.core.tick(rospy.get_time(), self)
+            self.core.tick(rospy.get_time(), self.outputs)
 
     def _on_enable(self, request: Any) -> Any:
         with self._lock:
             return SetBoolResponse(success=True, message=self.core.set_enabled(request.data))
-
-    # ------------------------------------------------------------------ Outputs
-
-    def command(self, u: tuple[float, float]) -> None:
-        msg = self._twist()
-        if self.core.config.stamped:
-            msg.header.stamp = rospy.Time.now()
-            msg.header.frame_id = self.core.config.base_frame
-            fill_twist(msg.twist, u)
-        else:
-            fill_twist(msg, u)
-        self._command_out.publish(msg)
-
-    def state(self, state: NodeState) -> None:
-        self._state_out.publish(String(data=json.dumps(state.as_dict())))
-
-    def diagnostics(self, state: NodeState) -> None:
-        status = DiagnosticStatus(level=state.level, name=f"{rospy.get_name()}: safety filter",
-                                  message=f"{state.status}: {state.reason}" if state.reason else state.status,
-                                  hardware_id=self.core.robot.name,
-                                  values=[KeyValue(key=k, value=v) for k, v in self.core.diagnostic_values(state)])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = rospy.Time.now()
-        self._diagnostics_out.publish(array)
-
-    def markers(self, footprint: np.ndarray, points: np.ndarray, active: np.ndarray) -> None:
-        if self._markers_out is not None:
-            self._markers_out.publish(fill_markers(MarkerArray(), Marker, Point, frame_id=self.core.config.base_frame,
-                                                   stamp=rospy.Time.now(), footprint=footprint, points=points,
-                                                   active=active))
 
 
 class PolicyNode:
@@ -255,11 +228,11 @@ class SimNode:
         self.bridge = apps.SimBridge(args.world, apps.robot_of(args), control_period=args.control_period,
                                      seed=args.seed)
         self._lock = threading.Lock()
-        self._scan_out = rospy.Publisher("scan", LaserScanMessage, queue_size=1)
-        self._odom_out = rospy.Publisher("odom", Odometry, queue_size=1)
-        self._clock_out = rospy.Publisher("/clock", ClockMessage, queue_size=1) if args.sim_time else None
+        self._publish = {"scan": rospy.Publisher("scan", LaserScanMessage, queue_size=1).publish,
+                         "odom": rospy.Publisher("odom", Odometry, queue_size=1).publish}
+        if args.sim_time:
+            self._publish["clock"] = rospy.Publisher("/clock", ClockMessage, queue_size=1).publish
         self._subscriber = rospy.Subscriber("cmd_vel", Twist, self._on_command, queue_size=_QUEUE)
-        self._contact_logged = False
         self._loop = _DeadlineLoop(args.control_period / args.speed, self._step)
 
     def _now(self) -> float:
@@ -271,21 +244,12 @@ class SimNode:
 
     def _step(self) -> None:
         with self._lock:
-            state = self.bridge.step(self._now())
-        stamp = rospy.Time.from_sec(state.time) if self.args.sim_time else rospy.Time.now()
-        if self._clock_out is not None:
-            self._clock_out.publish(ClockMessage(clock=stamp))
-        scan = fill_scan(LaserScanMessage(), state.scan, "laser")
-        scan.header.stamp = stamp
-        self._scan_out.publish(scan)
-        odom = fill_odometry(Odometry(), state.pose, state.velocity)
-        odom.header.stamp = stamp
-        self._odom_out.publish(odom)
-        if state.first_collision_time is not None and not self._contact_logged:
-            self._contact_logged = True
-            rospy.logerr(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
+            self.bridge.publish_step(self._now(), self._stamp, SIM_TYPES, self._publish, rospy.logerr)
         if self.bridge.finished(self.args.duration, self.args.stop_on_contact):
             rospy.signal_shutdown("simulated duration reached")
+
+    def _stamp(self, sim_time: float) -> Any:
+        return rospy.Time.from_sec(sim_time) if self.args.sim_time else rospy.Time.now()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -301,11 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif args.command == "sim":
             node = SimNode(args)
             rospy.spin()
-            report = node.bridge.report()
-            print(report.to_json(), flush=True)
-            if args.report is not None:
-                args.report.write_text(report.to_json())
-            node.bridge.close()
+            node.bridge.finish(args.report)
         else:
             SafetyNode()
             rospy.spin()

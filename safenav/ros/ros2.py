@@ -16,18 +16,16 @@ JSON), ``/diagnostics``, ``~/markers`` out; service ``~/enable`` (``std_srvs/Set
 from __future__ import annotations
 
 import importlib
-import json
 import sys
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-
 from safenav._optional import require
 from safenav.errors import SafeNavError
 from safenav.ros import apps
-from safenav.ros.core import NodeState, SafetyCore
-from safenav.ros.messages import fill_markers, fill_odometry, fill_scan, fill_twist
+from safenav.ros.core import SafetyCore
+from safenav.ros.messages import fill_twist
+from safenav.ros.outputs import MessageTypes, TopicOutputs
 from safenav.ros.params import NodeConfig
 
 __all__ = ["PolicyNode", "SafetyNode", "SimNode", "main"]
@@ -53,6 +51,9 @@ from std_srvs.srv import SetBool  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 _RELIABLE_DEPTH = 10
+SIM_TYPES = {"scan": LaserScanMessage, "odom": Odometry, "clock": ClockMessage}
+MESSAGE_TYPES = MessageTypes(Twist, TwistStamped, String, DiagnosticArray, DiagnosticStatus, KeyValue, MarkerArray,
+                             Marker, Point)
 
 
 def _message_class(package: str, name: str) -> type:
@@ -92,13 +93,15 @@ class SafetyNode(Node):
         if config.odom_topic:
             self.create_subscription(Odometry, config.odom_topic,
                                      lambda msg: self.core.on_odometry(msg, _seconds(self)), qos_profile_sensor_data)
-        self._twist = twist
-        self._command_out = self.create_publisher(twist, config.cmd_vel_out_topic, _RELIABLE_DEPTH)
-        self._state_out = self.create_publisher(String, "~/state", _RELIABLE_DEPTH)
-        self._diagnostics_out = self.create_publisher(DiagnosticArray, "/diagnostics", _RELIABLE_DEPTH)
-        self._markers_out = self.create_publisher(MarkerArray, "~/markers", 1) if config.markers else None
+        publish = {"command": self.create_publisher(twist, config.cmd_vel_out_topic, _RELIABLE_DEPTH).publish,
+                   "state": self.create_publisher(String, "~/state", _RELIABLE_DEPTH).publish,
+                   "diagnostics": self.create_publisher(DiagnosticArray, "/diagnostics", _RELIABLE_DEPTH).publish}
+        if config.markers:
+            publish["markers"] = self.create_publisher(MarkerArray, "~/markers", 1).publish
+        self.outputs = TopicOutputs(self.core, MESSAGE_TYPES, publish, stamp=lambda: self.get_clock().now().to_msg(),
+                                    level=lambda level: bytes([level]), node_name=self.get_name())
         self.create_service(SetBool, "~/enable", self._on_enable)
-        self._timer = self.create_timer(config.control_period, lambda: self.core.tick(_seconds(self), self))
+        self._timer = self.create_timer(config.control_period, lambda: self.core.tick(_seconds(self), self.outputs))
         logger.info(f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} for "
                     f"{config.robot.name} every {config.control_period:g} s; sources: "
                     + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
@@ -106,44 +109,13 @@ class SafetyNode(Node):
 
     def _on_scan(self, source: str, msg: Any) -> None:
         if self.core.on_scan(source, msg, _seconds(self)):
-            self.core.tick(_seconds(self), self, trigger="scan")
+            self.core.tick(_seconds(self), self.outputs, trigger="scan")
             self._timer.reset()
 
     def _on_enable(self, request: Any, response: Any) -> Any:
         response.message = self.core.set_enabled(request.data)
         response.success = True
         return response
-
-    # ------------------------------------------------------------------ Outputs
-
-    def command(self, u: tuple[float, float]) -> None:
-        msg = self._twist()
-        if self.core.config.stamped:
-            msg.header.stamp = self.get_clock().now().to_msg()
-            msg.header.frame_id = self.core.config.base_frame
-            fill_twist(msg.twist, u)
-        else:
-            fill_twist(msg, u)
-        self._command_out.publish(msg)
-
-    def state(self, state: NodeState) -> None:
-        self._state_out.publish(String(data=json.dumps(state.as_dict())))
-
-    def diagnostics(self, state: NodeState) -> None:
-        status = DiagnosticStatus(level=bytes([state.level]), name=f"{self.get_name()}: safety filter",
-                                  message=f"{state.status}: {state.reason}" if state.reason else state.status,
-                                  hardware_id=self.core.robot.name,
-                                  values=[KeyValue(key=k, value=v) for k, v in self.core.diagnostic_values(state)])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self._diagnostics_out.publish(array)
-
-    def markers(self, footprint: np.ndarray, points: np.ndarray, active: np.ndarray) -> None:
-        if self._markers_out is None:
-            return
-        self._markers_out.publish(fill_markers(MarkerArray(), Marker, Point, frame_id=self.core.config.base_frame,
-                                               stamp=self.get_clock().now().to_msg(), footprint=footprint,
-                                               points=points, active=active))
 
 
 class PolicyNode(Node):
@@ -178,12 +150,12 @@ class SimNode(Node):
                                      seed=args.seed)
         self.done = Future()
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._scan_out = self.create_publisher(LaserScanMessage, "scan", qos_profile_sensor_data)
-        self._odom_out = self.create_publisher(Odometry, "odom", _RELIABLE_DEPTH)
-        self._clock_out = self.create_publisher(ClockMessage, "/clock", _RELIABLE_DEPTH) if args.sim_time else None
+        self._publish = {"scan": self.create_publisher(LaserScanMessage, "scan", qos_profile_sensor_data).publish,
+                         "odom": self.create_publisher(Odometry, "odom", _RELIABLE_DEPTH).publish}
+        if args.sim_time:
+            self._publish["clock"] = self.create_publisher(ClockMessage, "/clock", _RELIABLE_DEPTH).publish
         self.create_subscription(Twist, "cmd_vel", lambda msg: self.bridge.on_command(msg, self._now()),
                                  _RELIABLE_DEPTH)
-        self._contact_logged = False
         self.create_timer(args.control_period / args.speed, self._step, clock=self._steady)
         self.get_logger().info(f"simulating {args.world} with {args.robot}: cmd_vel -> scan, odom")
 
@@ -192,27 +164,15 @@ class SimNode(Node):
             return self.bridge.state.time
         return _seconds(self)
 
-    def _stamp(self) -> Any:
+    def _stamp(self, sim_time: float) -> Any:
         if not self.args.sim_time:
             return self.get_clock().now().to_msg()
-        return Time(nanoseconds=round(self.bridge.state.time * 1e9)).to_msg()
+        return Time(nanoseconds=round(sim_time * 1e9)).to_msg()
 
     def _step(self) -> None:
         if self.done.done():
             return
-        state = self.bridge.step(self._now())
-        stamp = self._stamp()
-        if self._clock_out is not None:
-            self._clock_out.publish(ClockMessage(clock=stamp))
-        scan = fill_scan(LaserScanMessage(), state.scan, "laser")
-        scan.header.stamp = stamp
-        self._scan_out.publish(scan)
-        odom = fill_odometry(Odometry(), state.pose, state.velocity)
-        odom.header.stamp = stamp
-        self._odom_out.publish(odom)
-        if state.first_collision_time is not None and not self._contact_logged:
-            self._contact_logged = True
-            self.get_logger().error(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
+        self.bridge.publish_step(self._now(), self._stamp, SIM_TYPES, self._publish, self.get_logger().error)
         if self.bridge.finished(self.args.duration, self.args.stop_on_contact):
             self.done.set_result(self.bridge.report())
 
@@ -243,11 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif args.command == "sim":
             node = SimNode(args, cli_args=ros_args)
             _run(node, node.done)
-            report = node.bridge.report()
-            print(report.to_json(), flush=True)
-            if args.report is not None:
-                args.report.write_text(report.to_json())
-            node.bridge.close()
+            node.bridge.finish(args.report)
         else:
             node = SafetyNode(cli_args=ros_args)
             _run(node)
