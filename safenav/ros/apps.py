@@ -159,7 +159,7 @@ class SimBridge:
 
     def publish_step(self, now: float, stamp: Callable[[float], Any], types: Mapping[str, type],
                      publish: Mapping[str, Callable[[Any], None]], log_error: Callable[[str], None]) -> None:
-        """Advance one period and publish ``scan``, ``odom`` and, when ``publish`` has it, ``clock``.
+        """Advance one period and publish ``clock`` (when ``publish`` has it), ``odom`` and ``scan``.
 
         Args:
             now: the node's time [s] (for the command timeout).
@@ -172,12 +172,12 @@ class SimBridge:
         stamp_now = stamp(state.time)
         if "clock" in publish:
             publish["clock"](types["clock"](clock=stamp_now))
+        odom = fill_odometry(types["odom"](), state.pose, state.velocity)
+        odom.header.stamp = stamp_now
+        publish["odom"](odom)   # first: a node that filters when the scan arrives then has this period's velocity
         scan = fill_scan(types["scan"](), state.scan, "laser")
         scan.header.stamp = stamp_now
         publish["scan"](scan)
-        odom = fill_odometry(types["odom"](), state.pose, state.velocity)
-        odom.header.stamp = stamp_now
-        publish["odom"](odom)
         if state.first_collision_time is not None and not self._contact_logged:
             self._contact_logged = True
             log_error(f"contact at t = {state.first_collision_time:.2f} s (simulator truth)")
