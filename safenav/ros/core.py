@@ -66,6 +66,7 @@ _MOVING = 1e-3  # a nominal component above this [m/s or rad/s] asks for motion
 IDLE, DISABLED, WAITING, BAD_MESSAGE, STALE, ERROR = "idle", "disabled", "waiting", "bad_message", "stale", "error"
 _ERROR_STATUSES = frozenset({WAITING, BAD_MESSAGE, STALE, ERROR, *(s.value for s in BRAKING_STATUSES)})
 _WARN_STATUSES = frozenset({IDLE, DISABLED, "recovering", "slack"})
+_FILTERING = frozenset({"ok", "recovering", "slack"})  # the filter acted on u_nom (deadlock is counted here)
 
 
 class Timed(NamedTuple):
@@ -247,7 +248,7 @@ class SafetyCore:
         perf = time.perf_counter()
         try:
             scan = self.sources[source].convert(msg)
-        except (SafeNavError, ValueError, TypeError, AttributeError) as error:
+        except (SafeNavError, ValueError, TypeError, AttributeError, ArithmeticError) as error:
             self._scans[source] = None
             self._bad[source] = f"source {source!r}: malformed message: {error}"
             return False
@@ -358,7 +359,7 @@ class SafetyCore:
             brake = self.robot.brake(velocity, config.control_period if velocity is not None else None)
             return NodeState(time=now, status=status, reason=reason, enabled=enabled, u_nom=u_nom,
                              u=_pair(brake), intervened=True)
-        result = self._filter(u_nom, scans, velocity, ages)
+        result = self._filter(u_nom, scans, velocity, ages, now)
         self.last_result = result
         status = result.status.value
         if result.braked:
@@ -372,10 +373,10 @@ class SafetyCore:
                          active_points=len(result.active), solver=result.solver, filter_time=result.filter_time)
 
     def _filter(self, u_nom: tuple[float, float], scans: Sequence[LaserScan], velocity: np.ndarray | None,
-                ages: Sequence[float]) -> FilterResult:
-        """The one place the node calls the filter."""
+                ages: Sequence[float], now: float) -> FilterResult:
+        """The one place the node calls the filter (``now``: the node's time [s], for the call period)."""
         scan = scans[0] if len(scans) == 1 else tuple(scans)
-        return self.filter.filter(u_nom, scan, velocity=velocity, scan_age=max(ages))
+        return self.filter.filter(u_nom, scan, velocity=velocity, scan_age=max(ages), now=now)
 
     def _velocity(self, now: float) -> tuple[np.ndarray | None, tuple[str, str] | None]:
         """The measured velocity, or the reason odometry is missing or stale."""
@@ -423,7 +424,7 @@ class SafetyCore:
     def _stuck(self, now: float, state: NodeState) -> dict[str, Any]:
         """How long a moving nominal has been held at a standstill by the filter."""
         held = False
-        if state.u_nom is not None and state.u is not None and state.enabled:
+        if state.u_nom is not None and state.u is not None and state.status in _FILTERING:
             asked = max(abs(state.u_nom[0]) / self.robot.v_max, abs(state.u_nom[1]) / self.robot.omega_max)
             made = max(abs(state.u[0]) / self.robot.v_max, abs(state.u[1]) / self.robot.omega_max)
             held = max(abs(state.u_nom[0]), abs(state.u_nom[1])) > _MOVING and made <= STUCK_FRACTION * asked
