@@ -60,8 +60,9 @@ class MissingROS1(MissingDependency):
     def __init__(self, searched: str) -> None:
         super().__init__("rospy", "safenav-ros1 (the ROS 1 node)")
         self.searched = searched
-        self.args = (f"safenav-ros1 (the ROS 1 node) needs rospy, from the operating system (Debian: {_APT_LINE}); "
-                     f"not importable, and not found in {searched}",)
+        text = (f"safenav-ros1 (the ROS 1 node) needs rospy, from the operating system (Debian: {_APT_LINE}); "
+                f"not importable, and not found in {searched}")
+        self.msg, self.args = text, (text,)   # ImportError prints .msg
 
     def __reduce__(self) -> tuple[type, tuple[str]]:
         return type(self), (self.searched,)

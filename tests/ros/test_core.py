@@ -203,3 +203,28 @@ def test_deadlock_is_reported_when_the_filter_holds_a_moving_nominal_still():
         state = core.tick(0.05 * k, out)
     assert state is not None and 0.0 <= state.u[0] <= 0.05 * 0.5
     assert state.stuck_for == pytest.approx(0.05 * 59, abs=0.051) and state.deadlock
+
+
+def test_without_ros2_the_command_names_the_pip_line(monkeypatch, capsys):
+    import sys
+
+    from safenav.ros.cli import ros2_main
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    monkeypatch.delitem(sys.modules, "safenav.ros.ros2", raising=False)
+    assert ros2_main(["--help"]) == 2
+    assert capsys.readouterr().err.strip() == ('safenav-ros2: safenav-ros2 (the ROS 2 node) needs the optional package '
+                                               '\'rclpy\': pip install "safenav[ros2]"')
+
+
+def test_without_ros1_the_command_names_the_debian_packages(monkeypatch, capsys, tmp_path):
+    import sys
+
+    from safenav.ros.cli import ros1_main
+
+    monkeypatch.setitem(sys.modules, "rospy", None)
+    monkeypatch.delitem(sys.modules, "safenav.ros.ros1", raising=False)
+    monkeypatch.setenv("SAFENAV_ROS1_PYTHONPATH", str(tmp_path))
+    assert ros1_main(["--help"]) == 2
+    error = capsys.readouterr().err
+    assert "apt-get install ros-core python3-rospy" in error and str(tmp_path) in error
