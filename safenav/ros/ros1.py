@@ -270,7 +270,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             SafetyNode()
             rospy.spin()
-    except SafeNavError as error:
+    except (SafeNavError, ImportError) as error:  # a bad parameter, or a filter whose extra is missing
         print(f"safenav-ros1: {error}", file=sys.stderr)
         return 2
     return 0

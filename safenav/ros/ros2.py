@@ -207,7 +207,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             node = SafetyNode(cli_args=ros_args)
             _run(node)
-    except SafeNavError as error:
+    except (SafeNavError, ImportError) as error:  # a bad parameter, or a filter whose extra is missing
         print(f"safenav-ros2: {error}", file=sys.stderr)
         return 2
     finally:

@@ -84,3 +84,12 @@ def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graph
     assert recovered and all(0.0 < o[1] <= 0.3 for o in recovered)
     assert node.poll() is None, context
     assert context.count("braking: source 'scan': malformed message") == 2, context   # once per cause
+
+
+@pytest.mark.parametrize("middleware", MIDDLEWARES)
+def test_a_bad_parameter_stops_the_node_with_one_line_that_names_it(graphs, middleware: str) -> None:
+    graph = graphs(middleware)
+    node = graph.spawn("node", params={"robot": "rosbot", "filter": "cbf", "scan_timout": 1.0})
+    assert node.wait(timeout=60) == 2
+    lines = graph.log("node").strip().splitlines()
+    assert lines[-1].startswith(f"safenav-{middleware}: unknown parameter 'scan_timout'; expected one of: "), lines
