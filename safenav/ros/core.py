@@ -38,9 +38,10 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
-from safenav.errors import InvalidConfig, InvalidScanType, SafeNavError
+from safenav.errors import SafeNavError
 from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, make_filter
-from safenav.ros.messages import twist_of
+from safenav.geometry import Pose2D
+from safenav.ros.messages import pose_of, twist_of
 from safenav.ros.params import NodeConfig
 from safenav.ros.sources import SOURCE_TYPES, Source
 from safenav.scan import LaserScan
@@ -65,8 +66,8 @@ _MOVING = 1e-3  # a nominal component above this [m/s or rad/s] asks for motion
 # Statuses of the node itself (the filter's are FilterStatus values).
 IDLE, DISABLED, WAITING, BAD_MESSAGE, STALE, ERROR = "idle", "disabled", "waiting", "bad_message", "stale", "error"
 _ERROR_STATUSES = frozenset({WAITING, BAD_MESSAGE, STALE, ERROR, *(s.value for s in BRAKING_STATUSES)})
-_WARN_STATUSES = frozenset({IDLE, DISABLED, "recovering", "slack"})
-_FILTERING = frozenset({"ok", "recovering", "slack"})  # the filter acted on u_nom (deadlock is counted here)
+_WARN_STATUSES = frozenset({IDLE, DISABLED, "recovering", "slack", "late"})
+_FILTERING = frozenset({"ok", "recovering", "slack", "late"})  # the filter acted on u_nom (deadlock is counted here)
 
 
 class Timed(NamedTuple):
@@ -75,6 +76,15 @@ class Timed(NamedTuple):
     value: Any
     time: float
     perf: float
+
+
+class Odometry(NamedTuple):
+    """What the node keeps of a ``nav_msgs/Odometry`` message."""
+
+    velocity: tuple[float, float]
+    """``(v [m/s], omega [rad/s])`` in the base frame (``twist.twist``)."""
+    pose: Pose2D
+    """``(x [m], y [m], yaw [rad])`` in the odometry frame (``pose.pose``)."""
 
 
 class CauseLog:
@@ -116,6 +126,10 @@ class NodeState:
         u_nom: the input command ``(v [m/s], omega [rad/s])``, ``None`` before the first.
         u: the command the node decided ``(v, omega)``, ``None`` when it decided none.
         intervened: ``u`` differs from ``u_nom``.
+        binding: what bound the command: the filter's constraint family or cause (``"barrier"``,
+            ``"braking"``, ``"limits"``, ``"stale"``, ...; :class:`safenav.filters.Reason`), ``None`` when
+            the nominal passed unchanged or the filter was not called.
+        warnings: the filter's warnings (conditions that void part of its guarantee).
         min_barrier: the filter's smallest barrier value [m] (``None``: no constraint, or no filter call).
         clearance: distance from the body disk to the nearest point seen [m] (``None``: none seen).
         active_points: number of constraints that hold with equality.
@@ -140,6 +154,8 @@ class NodeState:
     u_nom: tuple[float, float] | None = None
     u: tuple[float, float] | None = None
     intervened: bool = False
+    binding: str | None = None
+    warnings: tuple[str, ...] = ()
     min_barrier: float | None = None
     clearance: float | None = None
     active_points: int = 0
@@ -204,8 +220,7 @@ class SafetyCore:
         info: logs an information line.
 
     Raises:
-        InvalidConfig: a filter setting is out of range, or several sources are configured for
-            a filter that reads one scan per call.
+        InvalidConfig: a filter setting is out of range.
     """
 
     def __init__(self, config: NodeConfig, *, warn: Callable[[str], None] = print,
@@ -215,9 +230,6 @@ class SafetyCore:
         self.filter: SafetyFilter = make_filter(config.filter, config.robot, config.control_period,
                                                 **config.filter_kwargs())
         self.sources: dict[str, Source] = {s.name: SOURCE_TYPES[s.type](s) for s in config.sources}
-        if len(self.sources) > 1 and not _takes_several_scans(self.filter, self.robot.scan()):
-            raise InvalidConfig(f"parameter sources lists {len(self.sources)} sources, but this filter reads one "
-                                f"scan per call; list one source")
         self.causes = CauseLog(warn, info)
         self.enabled = config.enabled
         self._scans: dict[str, Timed | None] = dict.fromkeys(self.sources)
@@ -228,6 +240,7 @@ class SafetyCore:
         self._last_published: tuple[float, float] | None = None
         self._stuck_since: float | None = None
         self._input_cause: str | None = None
+        self._warnings: set[str] = set()
         self._last_diagnostics: tuple[float, str] | None = None
         self.state = NodeState(time=0.0, status=IDLE, reason="no cmd_vel_in received yet", enabled=self.enabled)
         self.last_result: FilterResult | None = None
@@ -267,15 +280,15 @@ class SafetyCore:
         self._command = Timed(u, now, time.perf_counter())
 
     def on_odometry(self, msg: Any, now: float) -> None:
-        """Keep the latest measured velocity from a ``nav_msgs/Odometry`` message."""
+        """Keep the latest measured velocity and pose from a ``nav_msgs/Odometry`` message."""
         try:
-            velocity = twist_of(msg.twist.twist)
+            odometry = Odometry(twist_of(msg.twist.twist), pose_of(msg))
         except (AttributeError, TypeError, ValueError) as error:
             self._odometry = None
             self.causes.report("bad odometry", f"malformed {self.config.odom_topic} message: {error}")
             return
         self.causes.clear("bad odometry")
-        self._odometry = Timed(velocity, now, time.perf_counter())
+        self._odometry = Timed(odometry, now, time.perf_counter())
 
     def set_enabled(self, enabled: bool) -> str:
         """Switch filtering on or off (``~/enable``); the answer's message."""
@@ -346,7 +359,8 @@ class SafetyCore:
         if not enabled:
             return NodeState(time=now, status=DISABLED, reason="filter disabled by ~/enable: passing through",
                              enabled=False, u_nom=u_nom, u=u_nom)
-        velocity, odometry_problem = self._velocity(now)
+        odometry, odometry_problem = self._fresh_odometry(now)
+        velocity = None if odometry is None else np.asarray(odometry.velocity, dtype=float)
         scans, ages, source_problem = self._fresh_scans(now)
         problem = source_problem or odometry_problem
         cause = None if problem is None else _cause(*problem)
@@ -359,7 +373,7 @@ class SafetyCore:
             brake = self.robot.brake(velocity, config.control_period if velocity is not None else None)
             return NodeState(time=now, status=status, reason=reason, enabled=enabled, u_nom=u_nom,
                              u=_pair(brake), intervened=True)
-        result = self._filter(u_nom, scans, velocity, ages, now)
+        result = self._filter(u_nom, scans, odometry, ages, now)
         self.last_result = result
         status = result.status.value
         if result.braked:
@@ -367,19 +381,33 @@ class SafetyCore:
         else:
             for braking in BRAKING_STATUSES:
                 self.causes.clear(f"filter {braking.value}")
+        self._report_warnings(result.warnings)
         return NodeState(time=now, status=status, reason=result.message, enabled=enabled, u_nom=u_nom,
                          u=_pair(result.u), intervened=result.modified,
+                         binding=None if result.reason is None else result.reason.family, warnings=result.warnings,
                          min_barrier=_finite_or_none(result.min_barrier), clearance=_finite_or_none(result.clearance),
                          active_points=len(result.active), solver=result.solver, filter_time=result.filter_time)
 
-    def _filter(self, u_nom: tuple[float, float], scans: Sequence[LaserScan], velocity: np.ndarray | None,
+    def _filter(self, u_nom: tuple[float, float], scans: Sequence[LaserScan], odometry: Odometry | None,
                 ages: Sequence[float], now: float) -> FilterResult:
         """The one place the node calls the filter (``now``: the node's time [s], for the call period)."""
-        scan = scans[0] if len(scans) == 1 else tuple(scans)
-        return self.filter.filter(u_nom, scan, velocity=velocity, scan_age=max(ages), now=now)
+        velocity = None if odometry is None else np.asarray(odometry.velocity, dtype=float)
+        pose = None if odometry is None else odometry.pose
+        if len(scans) == 1:
+            return self.filter.filter(u_nom, scans[0], velocity=velocity, pose=pose, scan_age=ages[0], now=now)
+        return self.filter.filter(u_nom, tuple(scans), velocity=velocity, pose=pose, scan_age=list(ages), now=now)
 
-    def _velocity(self, now: float) -> tuple[np.ndarray | None, tuple[str, str] | None]:
-        """The measured velocity, or the reason odometry is missing or stale."""
+    def _report_warnings(self, warnings: Sequence[str]) -> None:
+        """Log each kind of filter warning once (the text before its first colon names the kind)."""
+        causes = {f"filter warning: {warning.split(':')[0]}": warning for warning in warnings}
+        for cause in self._warnings - set(causes):
+            self.causes.clear(cause)
+        for cause, warning in causes.items():
+            self.causes.report(cause, f"filter warning: {warning}")
+        self._warnings = set(causes)
+
+    def _fresh_odometry(self, now: float) -> tuple[Odometry | None, tuple[str, str] | None]:
+        """The latest odometry, or the reason it is missing or stale."""
         topic = self.config.odom_topic
         if not topic:
             return None, None
@@ -388,7 +416,7 @@ class SafetyCore:
         age = now - self._odometry.time
         if age > self.config.odom_timeout:
             return None, (STALE, f"odometry: {topic} is {age:.2f} s old (timeout {self.config.odom_timeout:g} s)")
-        return np.asarray(self._odometry.value, dtype=float), None
+        return self._odometry.value, None
 
     def _fresh_scans(self, now: float) -> tuple[list[LaserScan], list[float], tuple[str, str] | None]:
         """The latest scan of every source and its age, or the first reason one cannot be used.
@@ -476,14 +504,3 @@ def _pair(u: Any) -> tuple[float, float]:
 
 def _replace(state: NodeState, **changes: Any) -> NodeState:
     return NodeState(**{**state.__dict__, **changes})
-
-
-def _takes_several_scans(safety: SafetyFilter, scan: LaserScan) -> bool:
-    """Whether ``safety.filter`` accepts a sequence of scans (the multi-source API)."""
-    try:
-        safety.filter((0.0, 0.0), (scan, scan))
-    except InvalidScanType:
-        return False
-    finally:
-        safety.reset()
-    return True

@@ -70,12 +70,6 @@ def test_bad_parameters_raise_errors_that_name_the_value(parameters, error, mess
     assert message in str(caught.value)
 
 
-def test_several_sources_need_a_filter_that_reads_several_scans():
-    config = NodeConfig.from_parameters({"sources": ["front", "rear"]})
-    with pytest.raises(InvalidConfig, match="lists 2 sources, but this filter reads one scan per call"):
-        SafetyCore(config)
-
-
 def test_every_parameter_is_documented():
     text = (ROOT / "docs" / "ros.md").read_text()
     assert [p.name for p in PARAMETERS if f"`{p.name}`" not in text] == []
@@ -115,8 +109,10 @@ def twist(v: float, omega: float) -> SimpleNamespace:
     return SimpleNamespace(linear=SimpleNamespace(x=v, y=0.0, z=0.0), angular=SimpleNamespace(x=0.0, y=0.0, z=omega))
 
 
-def odometry(v: float, omega: float) -> SimpleNamespace:
-    return SimpleNamespace(twist=SimpleNamespace(twist=twist(v, omega)))
+def odometry(v: float, omega: float, x: float = 0.0) -> SimpleNamespace:
+    pose = SimpleNamespace(position=SimpleNamespace(x=x, y=0.0, z=0.0),
+                           orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0))
+    return SimpleNamespace(pose=SimpleNamespace(pose=pose), twist=SimpleNamespace(twist=twist(v, omega)))
 
 
 def make_core(**parameters) -> tuple[SafetyCore, Recorder, list[str]]:
@@ -136,7 +132,7 @@ def test_silent_until_a_command_arrives_then_filters_every_tick():
     assert out.commands == [(0.5, 0.0)]                   # free space: the nominal, bit for bit
     core.on_scan("scan", scan_message(0.4), 0.06)
     state = core.tick(0.1, out)
-    assert state.intervened and 0.0 <= out.commands[-1][0] < 0.3 and state.clearance == pytest.approx(0.4 - 0.155)
+    assert state.intervened and 0.0 <= out.commands[-1][0] < 0.3 and 0.0 < state.clearance <= 0.4 - 0.1
 
 
 def test_a_stale_command_publishes_zero_once_then_nothing():
@@ -228,3 +224,22 @@ def test_without_ros1_the_command_names_the_debian_packages(monkeypatch, capsys,
     assert ros1_main(["--help"]) == 2
     error = capsys.readouterr().err
     assert "apt-get install ros-core python3-rospy" in error and str(tmp_path) in error
+
+
+def test_several_sources_each_with_its_mount_and_timeout():
+    front_half = preset("m2wr")      # a 180-degree lidar at x = 0.15 m, looking forward
+    core, out, _ = make_core(robot="m2wr", sources=["front", "rear"], **{
+        "front.mount": list(front_half.lidar.mount), "rear.mount": [-0.15, 0.0, math.pi], "rear.timeout": 0.2})
+    ahead = synthetic_scan(front_half, Scene.of(wall(distance=0.8)))
+    behind = front_half.scan()     # the rear lidar sees nothing within range
+    for source, scan in (("front", ahead), ("rear", behind)):
+        fields = {n: getattr(scan, n) for n in ("angle_min", "angle_max", "angle_increment", "time_increment",
+                                                "scan_time", "range_min", "range_max")}
+        core.on_scan(source, SimpleNamespace(ranges=list(scan.ranges), intensities=[], **fields), 0.0)
+    core.on_command(twist(1.0, 0.0), 0.0)
+    state = core.tick(0.0, out)
+    assert state.status == "ok" and state.intervened and out.commands[-1][0] < 1.0
+    assert 0.0 < state.clearance < 0.8 + 0.15      # the wall, seen by the front lidar 0.15 m ahead of the base
+    assert state.binding is not None
+    state = core.tick(0.3, out)     # the rear source is now older than its 0.2 s timeout
+    assert state.status == "stale" and "source 'rear'" in state.reason
