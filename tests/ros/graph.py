@@ -76,16 +76,22 @@ class Graph:
         self.env = dict(env)
         self.processes: list[tuple[subprocess.Popen, BinaryIO]] = []
 
-    def spawn(self, label: str, *args: str, params: Mapping[str, Any] | None = None) -> subprocess.Popen:
-        """Start ``safenav-ros2``/``safenav-ros1`` with ``args`` and the safety node's ``params``."""
+    def spawn(self, label: str, *args: str, params: Mapping[str, Any] | None = None,
+              node_name: str | None = None) -> subprocess.Popen:
+        """Start ``safenav-ros2``/``safenav-ros1`` with ``args``, the safety node's ``params`` and node name."""
         command = [sys.executable, "-m", f"safenav.ros.{self.middleware}", *args]
-        if params:
-            if self.middleware == "ros2":
+        params = dict(params or {})
+        if self.middleware == "ros2":
+            if params or node_name:
                 command.append("--ros-args")
-                for name, value in params.items():
-                    command += ["-p", f"{name}:={_ros2_value(value)}"]
-            else:
-                command += [f"_{name.replace('.', '/')}:={_ros1_value(value)}" for name, value in params.items()]
+            for name, value in params.items():
+                command += ["-p", f"{name}:={_ros2_value(value)}"]
+            if node_name:
+                command += ["-r", f"__node:={node_name}"]
+        else:
+            command += [f"_{name.replace('.', '/')}:={_ros1_value(value)}" for name, value in params.items()]
+            if node_name:
+                command.append(f"__name:={node_name}")
         return self.run(label, command)
 
     def run(self, label: str, command: Sequence[str]) -> subprocess.Popen:
