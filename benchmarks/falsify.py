@@ -91,6 +91,8 @@ class Episode:
         noise: range noise, uniform within ``+- noise`` [m] (inside the filters' ``2 noise_std``).
         seed: seed of the range noise.
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
+        period: how long each command is really held [s] (default ``dt``); the filter is told
+            the time (``now``), so a longer period is a late call it must plan for.
     """
 
     robot: str
@@ -107,6 +109,7 @@ class Episode:
     noise: float = 0.0
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
+    period: float | None = None
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -116,9 +119,11 @@ class Episode:
     def from_json(cls, text: str) -> Episode:
         data = json.loads(text)
         for name in ("circles", "segments"):
-            data[name] = tuple(tuple(item) for item in data.get(name, ()))
+            if name in data:
+                data[name] = tuple(tuple(item) for item in data[name])
         for name in ("params", "velocity"):
-            data[name] = tuple(data.get(name, ()))
+            if name in data:
+                data[name] = tuple(data[name])
         return cls(**data)
 
     def scene(self) -> Scene:
@@ -230,8 +235,8 @@ def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.nd
     raise ValueError(f"unknown nominal {kind!r}; expected one of {NOMINALS}")
 
 
-def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float
-                      ) -> np.ndarray:
+def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float,
+                      time_constant: float | None = None) -> np.ndarray:
     """The base's velocity at the middle of each of the :data:`SUBSTEPS` sub-steps, ``(SUBSTEPS + 1, 2)``.
 
     Row ``k < SUBSTEPS`` is the mean velocity over sub-step ``k`` (exact for every model, so the
@@ -263,7 +268,7 @@ def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: 
             means[:, axis] = (ramp_part + hold_part) / h
         return np.vstack((means, velocity[-1]))
     if base == "lag":
-        tau = dt
+        tau = dt if time_constant is None else time_constant
         decay = np.exp(-edges / tau)
         velocity = command + (start - command) * decay[:, None]
         # Mean over [a, b] of u + (w0 - u) e^{-t/tau}: u + (w0 - u) tau (e^{-a/tau} - e^{-b/tau}) / h.
@@ -324,11 +329,12 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     start_barrier = math.nan
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
-    steps = round(episode.duration / dt)
-    h = dt / SUBSTEPS
+    period = episode.period if episode.period is not None else dt
+    steps = round(episode.duration / period)
+    h = period / SUBSTEPS
     clearance = min_clearance
     for step in range(steps):
-        t = step * dt
+        t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
         u_nom = policy(t, scan.points())
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
@@ -337,7 +343,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
         command = np.asarray(result.u, dtype=float)
-        profile = _velocity_profile(episode.base, velocity, command, robot, dt)
+        profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
         clearances = _clearances(scene, poses[1:, :2], radius)

@@ -477,6 +477,9 @@ class SafetyFilter(abc.ABC):
         view = self._observe(scans)
         result = self._filter(nominal, view, current, held)
         self._remember(view)
+        if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
+            return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
+                               f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
         extras: dict[str, Any] = dict(period=held)
         if warnings or result.warnings:
             extras["warnings"] = result.warnings + warnings
