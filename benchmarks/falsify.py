@@ -59,9 +59,10 @@ __all__ = [
 
 BASES = ("instant", "ramp", "ramp_limit", "lag")
 """Models of the base's velocity loop (see the module docstring)."""
-NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script")
-"""Nominal policies an episode can use (``script`` replays a fixed command sequence)."""
-SEARCHED_NOMINALS = NOMINALS[:-1]
+NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script", "goal")
+"""Nominal policies an episode can use (``script`` replays a fixed command sequence, ``goal`` drives
+to a point with safenav's go-to-goal policy)."""
+SEARCHED_NOMINALS = NOMINALS[:-2]
 """Nominal policies the search drives the filter with."""
 SUBSTEPS = 20
 """Exact unicycle sub-steps per control period."""
@@ -93,6 +94,7 @@ class Episode:
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
         period: how long each command is really held [s] (default ``dt``); the filter is told
             the time (``now``), so a longer period is a late call it must plan for.
+        escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
     """
 
     robot: str
@@ -110,6 +112,7 @@ class Episode:
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
     period: float | None = None
+    escape: bool = False
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -156,6 +159,9 @@ class Outcome:
     steps: int
 
     hidden_at_start: bool = False
+    deadlock_time: float = 0.0
+    escape_steps: int = 0
+    goal_distance: float | None = None
 
     @property
     def valid(self) -> bool:
@@ -200,33 +206,40 @@ def hidden_at_start(robot: RobotSpec, scene: Scene, margin: float) -> bool:
     return bool(np.any(~inside))
 
 
-def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.ndarray], np.ndarray]:
-    """The nominal ``(t, points) -> (v, omega)`` of an episode; ``points`` are the filter's view.
+def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, LaserScan, Pose2D], np.ndarray]:
+    """The nominal ``(t, scan, pose) -> (v, omega)`` of an episode.
 
     ``arc`` (v, omega): constant. ``bang_bang`` (v, omega, period): omega changes sign every
     ``period`` [s]. ``aim_nearest`` (v, gain): full speed at the nearest scan point, turning
     towards it. ``spin_then_go`` (omega, t_spin, v): spin for ``t_spin`` [s], then drive.
     ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``script`` (t_1, v_1, omega_1,
-    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after.
+    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after. ``goal``
+    (x, y): :class:`~safenav.reference.GoToGoal` to that point of the start frame, with the true pose.
     """
     p = episode.params
     kind = episode.nominal
     if kind in ("arc", "reverse"):
         command = np.array([p[0], p[1]])
-        return lambda t, points: command
+        return lambda t, scan, pose: command
     if kind == "bang_bang":
-        return lambda t, points: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
+        return lambda t, scan, pose: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
     if kind == "script":
         table = np.asarray(p, dtype=float).reshape(-1, 3)
 
-        def script(t: float, points: np.ndarray) -> np.ndarray:
+        def script(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
             row = int(np.searchsorted(table[:, 0], t, side="right"))
             return table[min(row, len(table) - 1), 1:].copy()
         return script
+    if kind == "goal":
+        from safenav.reference import GoToGoal
+
+        policy = GoToGoal(robot, goal=(p[0], p[1]))
+        return lambda t, scan, pose: np.asarray(policy(scan, pose), dtype=float)
     if kind == "spin_then_go":
-        return lambda t, points: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
+        return lambda t, scan, pose: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
     if kind == "aim_nearest":
-        def aim(t: float, points: np.ndarray) -> np.ndarray:
+        def aim(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
+            points = scan.points()
             if len(points) == 0:
                 return np.array([p[0], 0.0])
             nearest = points[np.argmin(np.hypot(points[:, 0], points[:, 1]))]
@@ -315,7 +328,13 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     robot = preset(episode.robot)
     dt = episode.dt
     safety = make_filter(episode.filter, robot, dt, **episode.settings)
+    if episode.escape:
+        from safenav.filters.escape import Escape
+
+        safety = Escape(safety)
     margin = float(safety.margin)
+    deadlock_time = 0.0
+    escape_steps = 0
     scene = episode.scene()
     policy = nominal_policy(episode, robot)
     rng = np.random.default_rng(episode.seed)
@@ -336,12 +355,15 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     for step in range(steps):
         t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
-        u_nom = policy(t, scan.points())
+        u_nom = policy(t, scan, pose)
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+        if result.deadlock is not None:
+            deadlock_time = max(deadlock_time, result.deadlock.time)
+        escape_steps += bool(result.escape)
         command = np.asarray(result.u, dtype=float)
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
@@ -357,12 +379,17 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         if record:
             log.append(dict(step=step, t=t, u_nom=np.asarray(u_nom, dtype=float).tolist(), u=command.tolist(),
                             status=result.status.value, message=result.message, min_barrier=result.min_barrier,
+                            escape=result.escape, deadlock=None if result.deadlock is None else result.deadlock.time,
                             clearance=clearance, pose=(pose.x, pose.y, wrap_angle(pose.yaw)),
                             velocity=velocity.tolist()))
         if contact and not record:
             break
+    goal_distance = None
+    if episode.nominal == "goal":
+        goal_distance = math.hypot(episode.params[0] - pose.x, episode.params[1] - pose.y)
     outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
-                      statuses, step + 1, hidden_at_start(robot, scene, margin))
+                      statuses, step + 1, hidden_at_start(robot, scene, margin), deadlock_time, escape_steps,
+                      goal_distance)
     return outcome, log
 
 
