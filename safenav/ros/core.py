@@ -30,6 +30,7 @@ message brakes, is logged once per cause, and is reported in the state.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -38,9 +39,10 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
-from safenav.errors import SafeNavError
+from safenav.errors import LidarMismatch, SafeNavError
 from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, make_filter
 from safenav.geometry import Pose2D
+from safenav.robot import LidarSpec, RobotSpec
 from safenav.ros.messages import pose_of, twist_of
 from safenav.ros.params import NodeConfig
 from safenav.ros.sources import SOURCE_TYPES, Source
@@ -226,11 +228,13 @@ class SafetyCore:
     def __init__(self, config: NodeConfig, *, warn: Callable[[str], None] = print,
                  info: Callable[[str], None] = print) -> None:
         self.config = config
-        self.robot = config.robot
-        self.filter: SafetyFilter = make_filter(config.filter, config.robot, config.control_period,
-                                                **config.filter_kwargs())
         self.sources: dict[str, Source] = {s.name: SOURCE_TYPES[s.type](s) for s in config.sources}
         self.causes = CauseLog(warn, info)
+        self._info = info
+        first = config.sources[0]
+        self._build(config.robot.replace(lidar=dataclasses.replace(config.robot.lidar, mount=first.mount,
+                                                                   frame_id=first.name), extra_lidars=()))
+        self._confirmed: set[str] = set()
         self.enabled = config.enabled
         self._scans: dict[str, Timed | None] = dict.fromkeys(self.sources)
         self._bad: dict[str, str] = {}
@@ -260,7 +264,7 @@ class SafetyCore:
         """
         perf = time.perf_counter()
         try:
-            scan = self.sources[source].convert(msg)
+            scan = self._placed(source, self.sources[source].convert(msg))
         except (SafeNavError, ValueError, TypeError, AttributeError, ArithmeticError) as error:
             self._scans[source] = None
             self._bad[source] = f"source {source!r}: malformed message: {error}"
@@ -268,6 +272,37 @@ class SafetyCore:
         self._bad.pop(source, None)
         self._scans[source] = Timed(scan, now, perf)
         return self.config.step_on_scan and source == self.trigger_source
+
+    def _build(self, robot: RobotSpec) -> None:
+        """Protect ``robot`` (its lidars are the sources) with a new filter."""
+        self.robot = robot
+        self.filter: SafetyFilter = make_filter(self.config.filter, robot, self.config.control_period,
+                                                **self.config.filter_kwargs())
+
+    def _placed(self, source: str, scan: LaserScan) -> LaserScan:
+        """``scan`` checked against its source's lidar (:meth:`~safenav.robot.RobotSpec.match_scan`).
+
+        The first source starts as the preset's lidar on the source's mount. A source's first
+        message that does not fit its lidar (an extra source, or a driver whose layout differs
+        from the preset's) describes that lidar from then on: the filter is built again, once.
+        A later message that does not fit is malformed.
+        """
+        try:
+            placed = self.robot.match_scan(scan)
+        except LidarMismatch:
+            if source in self._confirmed:
+                raise
+            lidar = _lidar_of(scan, self.robot.lidar.noise_std if source == self.config.sources[0].name else 0.0)
+            lidars = [known for known in self.robot.lidars if known.frame_id != source]
+            lidars.insert(0 if source == self.config.sources[0].name else len(lidars), lidar)
+            self._build(self.robot.replace(lidar=lidars[0], extra_lidars=tuple(lidars[1:])))
+            self._info(f"source {source!r}: lidar from its first message: {lidar.n_beams} beams over "
+                       f"[{lidar.angle_min:.4f}, {lidar.angle_max:.4f}] rad, "
+                       f"{lidar.range_min:g}-{lidar.range_max:g} m, "
+                       f"mount {tuple(round(v, 4) for v in lidar.mount)}")
+            placed = self.robot.match_scan(scan)
+        self._confirmed.add(source)
+        return placed
 
     def on_command(self, msg: Any, now: float) -> None:
         """Keep the latest nominal command (``Twist``, or ``TwistStamped`` with ``stamped``)."""
@@ -504,3 +539,11 @@ def _pair(u: Any) -> tuple[float, float]:
 
 def _replace(state: NodeState, **changes: Any) -> NodeState:
     return NodeState(**{**state.__dict__, **changes})
+
+
+def _lidar_of(scan: LaserScan, noise_std: float) -> LidarSpec:
+    """The lidar that took ``scan``: its layout, range limits, mount and frame."""
+    last = scan.angle_min + (scan.n_beams - 1) * scan.angle_increment
+    return LidarSpec(n_beams=scan.n_beams, angle_min=scan.angle_min, angle_max=last, range_min=scan.range_min,
+                     range_max=scan.range_max, mount=scan.mount, scan_time=scan.scan_time, noise_std=noise_std,
+                     frame_id=scan.frame_id)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Mapping
-from types import MappingProxyType
+from types import MappingProxyType, SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 from safenav.scan import LaserScan
@@ -55,12 +55,28 @@ class Source(abc.ABC):
 
 
 class ScanSource(Source):
-    """A ``sensor_msgs/LaserScan`` topic (REP-117 readings; the mount from the parameters)."""
+    """A ``sensor_msgs/LaserScan`` topic (REP-117 readings; the mount from the parameters).
+
+    The scan's ``frame_id`` is the source's name: the node's robot describes each source as
+    the lidar of that frame (:meth:`safenav.robot.RobotSpec.match_scan`).
+    """
 
     message = ("sensor_msgs", "LaserScan")
 
     def convert(self, msg: Any) -> LaserScan:
-        return LaserScan.from_msg(msg, mount=self.config.mount)
+        return LaserScan.from_msg(_Renamed(msg, self.config.name), mount=self.config.mount)
+
+
+class _Renamed:
+    """``msg`` seen with ``header.frame_id`` replaced (its stamp kept), without copying its data."""
+
+    def __init__(self, msg: Any, frame_id: str) -> None:
+        self._msg = msg
+        header = getattr(msg, "header", None)
+        self.header = SimpleNamespace(stamp=getattr(header, "stamp", None), frame_id=frame_id)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._msg, name)
 
 
 SOURCE_TYPES: Mapping[str, type[Source]] = MappingProxyType({"scan": ScanSource})

@@ -243,3 +243,18 @@ def test_several_sources_each_with_its_mount_and_timeout():
     assert state.binding is not None
     state = core.tick(0.3, out)     # the rear source is now older than its 0.2 s timeout
     assert state.status == "stale" and "source 'rear'" in state.reason
+
+
+def test_a_driver_layout_is_learned_from_the_first_message_and_a_later_change_is_malformed():
+    core, out, _ = make_core()
+    other = preset("puzzlebot").lidar           # 360 beams over 0..2pi: not the ROSbot preset's layout
+    first = other.scan(np.full(other.n_beams, 2.0))
+    fields = {n: getattr(first, n) for n in ("angle_min", "angle_max", "angle_increment", "time_increment",
+                                             "scan_time", "range_min", "range_max")}
+    core.on_scan("scan", SimpleNamespace(ranges=list(first.ranges), intensities=[], **fields), 0.0)
+    core.on_command(twist(0.5, 0.0), 0.0)
+    assert core.tick(0.0, out).status == "ok"
+    assert core.robot.lidar.n_beams == 360 and core.robot.lidar.mount == ROSBOT.lidar.mount
+    core.on_scan("scan", scan_message(None), 0.05)      # now 720 beams: the driver changed under the node
+    state = core.tick(0.05, out)
+    assert state.status == "bad_message" and "720" in state.reason and out.commands[-1] == (0.0, 0.0)
