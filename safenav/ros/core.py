@@ -41,6 +41,7 @@ import numpy as np
 
 from safenav.errors import LidarMismatch, SafeNavError
 from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, make_filter
+from safenav.filters.escape import Escape
 from safenav.geometry import Pose2D
 from safenav.robot import LidarSpec, RobotSpec
 from safenav.ros.messages import pose_of, twist_of
@@ -48,14 +49,7 @@ from safenav.ros.params import NodeConfig
 from safenav.ros.sources import SOURCE_TYPES, Source
 from safenav.scan import LaserScan
 
-__all__ = ["DEADLOCK_AFTER", "CauseLog", "NodeState", "Outputs", "SafetyCore", "Timed"]
-
-DEADLOCK_AFTER = 2.0
-"""Seconds the filter may hold a moving nominal at a standstill before the state says ``deadlock``."""
-
-STUCK_FRACTION = 0.05
-"""The filter holds the robot at a standstill when the command makes less than this fraction of the
-nominal's motion (each axis relative to its velocity limit)."""
+__all__ = ["CauseLog", "NodeState", "Outputs", "SafetyCore", "Timed"]
 
 DIAGNOSTICS_PERIOD = 1.0
 """Seconds between two ``/diagnostics`` messages while the status does not change."""
@@ -63,13 +57,11 @@ DIAGNOSTICS_PERIOD = 1.0
 LATE_FACTOR = 1.5
 """A tick later than this many control periods after the previous one is reported as late."""
 
-_MOVING = 1e-3  # a nominal component above this [m/s or rad/s] asks for motion
 
 # Statuses of the node itself (the filter's are FilterStatus values).
 IDLE, DISABLED, WAITING, BAD_MESSAGE, STALE, ERROR = "idle", "disabled", "waiting", "bad_message", "stale", "error"
 _ERROR_STATUSES = frozenset({WAITING, BAD_MESSAGE, STALE, ERROR, *(s.value for s in BRAKING_STATUSES)})
 _WARN_STATUSES = frozenset({IDLE, DISABLED, "recovering", "slack", "late"})
-_FILTERING = frozenset({"ok", "recovering", "slack", "late"})  # the filter acted on u_nom (deadlock is counted here)
 
 
 class Timed(NamedTuple):
@@ -143,9 +135,10 @@ class NodeState:
             (``None`` for timer ticks or without a command).
         source_ages: age of each source's latest message [s] (``None``: never received).
         odom_age: age of the latest odometry [s] (``None``: none, or no odometry topic).
-        stuck_for: how long the filter has held a moving nominal at a standstill [s] (less than
-            :data:`STUCK_FRACTION` of the motion asked).
-        deadlock: ``stuck_for`` reached :data:`DEADLOCK_AFTER`.
+        deadlock: how long the filter has held back a nominal that asks to move [s], once it
+            reports a deadlock (:attr:`safenav.filters.FilterResult.deadlock`); ``None`` otherwise.
+        escape: what the escape wrapper does instead of the nominal (``escape`` parameter); empty
+            when it is not escaping.
     """
 
     time: float
@@ -168,15 +161,15 @@ class NodeState:
     latency: float | None = None
     source_ages: dict[str, float | None] = field(default_factory=dict)
     odom_age: float | None = None
-    stuck_for: float = 0.0
-    deadlock: bool = False
+    deadlock: float | None = None
+    escape: str = ""
 
     @property
     def level(self) -> int:
         """``diagnostic_msgs/DiagnosticStatus`` level: 0 OK, 1 WARN, 2 ERROR."""
         if self.status in _ERROR_STATUSES:
             return 2
-        return 1 if self.status in _WARN_STATUSES or self.deadlock else 0
+        return 1 if self.status in _WARN_STATUSES or self.deadlock is not None else 0
 
     def as_dict(self) -> dict[str, Any]:
         """The state as JSON-safe values (non-finite numbers become ``None``)."""
@@ -242,7 +235,6 @@ class SafetyCore:
         self._odometry: Timed | None = None
         self._last_tick: float | None = None
         self._last_published: tuple[float, float] | None = None
-        self._stuck_since: float | None = None
         self._input_cause: str | None = None
         self._warnings: set[str] = set()
         self._last_diagnostics: tuple[float, str] | None = None
@@ -276,8 +268,8 @@ class SafetyCore:
     def _build(self, robot: RobotSpec) -> None:
         """Protect ``robot`` (its lidars are the sources) with a new filter."""
         self.robot = robot
-        self.filter: SafetyFilter = make_filter(self.config.filter, robot, self.config.control_period,
-                                                **self.config.filter_kwargs())
+        safety = make_filter(self.config.filter, robot, self.config.control_period, **self.config.filter_kwargs())
+        self.filter: SafetyFilter | Escape = Escape(safety) if self.config.escape else safety
 
     def _placed(self, source: str, scan: LaserScan) -> LaserScan:
         """``scan`` checked against its source's lidar (:meth:`~safenav.robot.RobotSpec.match_scan`).
@@ -365,7 +357,7 @@ class SafetyCore:
             self._last_published = state.u
         latency = time.perf_counter() - trigger_scan.perf if published and trigger_scan else None
         state = _replace(state, published=published, period=period, trigger=trigger, latency=latency,
-                         **self._ages(now), **self._stuck(now, state))
+                         **self._ages(now))
         self.state = state
         outputs.state(state)
         if self._diagnostics_due(now, state.status):
@@ -420,6 +412,7 @@ class SafetyCore:
         return NodeState(time=now, status=status, reason=result.message, enabled=enabled, u_nom=u_nom,
                          u=_pair(result.u), intervened=result.modified,
                          binding=None if result.reason is None else result.reason.family, warnings=result.warnings,
+                         deadlock=None if result.deadlock is None else result.deadlock.time, escape=result.escape,
                          min_barrier=_finite_or_none(result.min_barrier), clearance=_finite_or_none(result.clearance),
                          active_points=len(result.active), solver=result.solver, filter_time=result.filter_time)
 
@@ -483,21 +476,6 @@ class SafetyCore:
                        for name, latest in self._scans.items()}
         odom_age = None if self._odometry is None else round(now - self._odometry.time, 6)
         return {"source_ages": source_ages, "odom_age": odom_age}
-
-    def _stuck(self, now: float, state: NodeState) -> dict[str, Any]:
-        """How long a moving nominal has been held at a standstill by the filter."""
-        held = False
-        if state.u_nom is not None and state.u is not None and state.status in _FILTERING:
-            asked = max(abs(state.u_nom[0]) / self.robot.v_max, abs(state.u_nom[1]) / self.robot.omega_max)
-            made = max(abs(state.u[0]) / self.robot.v_max, abs(state.u[1]) / self.robot.omega_max)
-            held = max(abs(state.u_nom[0]), abs(state.u_nom[1])) > _MOVING and made <= STUCK_FRACTION * asked
-        if not held:
-            self._stuck_since = None
-            return {"stuck_for": 0.0, "deadlock": False}
-        if self._stuck_since is None:
-            self._stuck_since = now
-        stuck_for = now - self._stuck_since
-        return {"stuck_for": stuck_for, "deadlock": stuck_for >= DEADLOCK_AFTER}
 
     def _diagnostics_due(self, now: float, status: str) -> bool:
         last = self._last_diagnostics

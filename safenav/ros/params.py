@@ -58,6 +58,8 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("alpha_max", None, "largest angular acceleration [rad/s^2] (default: the preset's)"),
     Parameter("filter", "cbf", "safety filter: cbf, mpc or zones; its settings are <filter>.<field> "
                                "(e.g. cbf.margin, mpc.horizon), fields of CBFConfig/MPCConfig/ZonesConfig"),
+    Parameter("escape", False, "wrap the filter in safenav.filters.escape.Escape: a deadlock escape whose "
+                               "commands pass through the filter"),
     Parameter("control_period", 0.05, "period of the cmd_vel output and the filter's dt [s]"),
     Parameter("step_on_scan", True, "also filter at once when a scan arrives (the timer then restarts), "
                                     "so a fresh scan never waits for the next tick"),
@@ -135,6 +137,7 @@ class NodeConfig:
         robot: the robot to protect.
         filter: ``"cbf"``, ``"mpc"`` or ``"zones"``.
         filter_settings: keyword settings of the filter (fields of its config class).
+        escape: wrap the filter in the deadlock escape (:class:`safenav.filters.escape.Escape`).
         control_period: output period and the filter's ``dt`` [s].
         step_on_scan: filter at once when a scan arrives, and restart the timer.
         sources: the obstacle sources (at least one).
@@ -152,6 +155,7 @@ class NodeConfig:
     robot: RobotSpec
     filter: str = "cbf"
     filter_settings: Mapping[str, Any] = field(default_factory=dict)
+    escape: bool = False
     control_period: float = 0.05
     step_on_scan: bool = True
     sources: tuple[SourceConfig, ...] = ()
@@ -187,7 +191,7 @@ class NodeConfig:
         _string("odom_topic", self.odom_topic, empty=True)
         for name in ("cmd_vel_timeout", "odom_timeout"):
             put(self, name, _duration(name, getattr(self, name)))
-        for name in ("step_on_scan", "stamped", "markers", "enabled"):
+        for name in ("escape", "step_on_scan", "stamped", "markers", "enabled"):
             put(self, name, _checks.boolean(f"parameter {name}", getattr(self, name)))
 
     @property
@@ -230,7 +234,7 @@ class NodeConfig:
                             *(f"{filter_name}.{f.name}" for f in dataclasses.fields(FILTER_CONFIGS[filter_name]))})
             raise UnknownName("parameter", unknown[0], known)
         plain = {name: given.pop(name, _PLAIN[name].default) for name in
-                 ("control_period", "step_on_scan", "cmd_vel_in_topic", "cmd_vel_out_topic", "stamped",
+                 ("escape", "control_period", "step_on_scan", "cmd_vel_in_topic", "cmd_vel_out_topic", "stamped",
                   "cmd_vel_timeout", "odom_topic", "odom_timeout", "base_frame", "markers", "enabled")}
         return cls(robot=robot, filter=filter_name, filter_settings=settings, sources=sources, **plain)
 

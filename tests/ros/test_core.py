@@ -189,16 +189,25 @@ def test_state_is_json_safe_and_diagnostics_rate_limited_and_markers_optional():
     assert footprint.shape == (4, 2) and len(points) and np.all(np.isin(active, points))
 
 
-def test_deadlock_is_reported_when_the_filter_holds_a_moving_nominal_still():
-    core, out, _ = make_core()
-    core.on_command(twist(0.5, 0.0), 0.0)
+def _drive_into_a_wall(core, out, seconds: float):
     state = None
-    for k in range(60):
-        core.on_scan("scan", scan_message(0.39), 0.05 * k)    # a wall at the margin: the filter creeps
+    for k in range(round(seconds / 0.05)):
+        core.on_scan("scan", scan_message(0.39), 0.05 * k)    # a wall at the margin, straight ahead
         core.on_command(twist(0.5, 0.0), 0.05 * k)
         state = core.tick(0.05 * k, out)
-    assert state is not None and 0.0 <= state.u[0] <= 0.05 * 0.5
-    assert state.stuck_for == pytest.approx(0.05 * 59, abs=0.051) and state.deadlock
+    return state
+
+
+def test_a_deadlock_is_reported_and_the_escape_parameter_gets_out_of_it():
+    core, out, _ = make_core()
+    state = _drive_into_a_wall(core, out, 3.0)
+    assert state.deadlock is not None and state.deadlock >= 1.0 and state.escape == "" and state.level >= 1
+    escaping, out, _ = make_core(escape=True)
+    _drive_into_a_wall(escaping, out, 3.0)
+    escapes = [s for s in out.states if s.escape]
+    assert escapes and all(s.u_nom == (0.5, 0.0) and abs(s.u[1]) > 0.1 for s in escapes)   # turning away
+    assert "following the obstacle" in escapes[0].escape
+
 
 
 def test_without_ros2_the_command_names_the_pip_line(monkeypatch, capsys):
