@@ -83,11 +83,19 @@ def test_core_dependencies_are_only_what_the_filters_need_with_lower_bounds_only
     project = _pyproject()["project"]
     assert _names(project["dependencies"]) == {"numpy", "scipy", "qpsolvers", "daqp", "osqp", "casadi"}
     extras = project["optional-dependencies"]
-    assert {"sim", "ros2", "gym", "rl", "test", "all"} <= set(extras)
+    assert {"sim", "ros", "ros2", "gym", "rl", "test", "all"} <= set(extras)
     assert "pybullet" in _names(extras["sim"])
     every = [r for group in (project["dependencies"], *extras.values()) for r in group]
     assert not [r for r in every if "<" in r or "==" in r], "lower bounds only"
     assert {"safenav"} <= _names(extras["test"]) and "sim" in extras["test"][0] and "ros2" in extras["test"][0]
+
+
+def test_every_extra_the_code_names_exists():
+    """``require(..., extra="X")`` tells users to ``pip install "safenav[X]"``: X must be an extra."""
+    extras = set(_pyproject()["project"]["optional-dependencies"])
+    named = {(path.relative_to(ROOT).as_posix(), extra) for path in (ROOT / "safenav").rglob("*.py")
+             for extra in re.findall(r'extra="([^"]+)"', path.read_text())}
+    assert named and {(path, extra) for path, extra in named if extra not in extras} == set()
 
 
 # The optional packages: with every one of them unimportable, the filters must still import and run.
