@@ -113,6 +113,11 @@ class BodyModel:
         radius = float(np.hypot(*half))
         return cls(centres, np.full(n_disks, radius), polygon, f"cover{n_disks}")
 
+    @functools.cached_property
+    def key(self) -> tuple[bytes, float]:
+        """A hashable description of the outline, for caches: the polygon's bytes, or the disk's radius."""
+        return (self.outline.tobytes(), 0.0) if self.outline is not None else (b"", float(self.radii[0]))
+
     @property
     def n_disks(self) -> int:
         return int(self.radii.size)
@@ -142,8 +147,7 @@ class BodyModel:
 
     def boundary(self) -> tuple[np.ndarray, np.ndarray]:
         """Samples of the outline and their outward unit normals, ``(S, 2)`` each [m]."""
-        return _boundary(self.outline.tobytes() if self.outline is not None else b"",
-                         float(self.radii[0]) if self.outline is None else 0.0)
+        return _boundary(*self.key)
 
     def area_excess(self) -> float:
         """Area of the disks' union outside the outline, as a fraction of the outline's area."""

@@ -253,6 +253,8 @@ class CBFSafetyFilter(SafetyFilter):
         self.far_gamma = float(cfg.far_gamma)
         self.lookahead = float(cfg.lookahead)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
+        control = self.body.centres + np.array([self.lookahead, 0.0])
+        self._arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))   # farthest control point [m]
         self.backend: QPBackend = make_backend(cfg.solver)
 
     def __repr__(self) -> str:
@@ -296,37 +298,57 @@ class CBFSafetyFilter(SafetyFilter):
         barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
         obstacle = barrier
         if velocity is not None:
-            braking = families.braking_rows(geo, robot.a_max, reaction)
-            tighter = braking.h < barrier.h
-            obstacle = families.Rows(barrier.G, np.minimum(barrier.h, braking.h), barrier.point,
-                                     np.where(tighter, braking.family, barrier.family))
-            sweep = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, period, reaction)
+            # The braking and sweep rows can bind only within the braking reach (their right side, the
+            # stopping speed, exceeds every approach speed the box allows beyond it).
+            near = geo.barrier <= self._braking_reach(lower, upper, velocity, period, reaction)
+            close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
+            braking = families.braking_rows(close, robot.a_max, reaction)
+            h = barrier.h.copy()
+            family = barrier.family.copy()
+            index = np.flatnonzero(near)
+            tighter = braking.h < h[index]
+            h[index[tighter]] = braking.h[tighter]
+            family[index[tighter]] = braking.family[tighter]
+            obstacle = families.Rows(barrier.G, h, barrier.point, family)
+            sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction)
             obstacle = families.stack(obstacle, sweep)
             obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant))
         frontier = view.frontier
-        hard = families.stack(families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach),
-                              families.blind_rows(frontier.forward, frontier.backward))
-        rows = families.stack(obstacle, hard)
+        if frontier.points.shape[0] or frontier.forward or frontier.backward:
+            gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)
+            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward))
+            rows = families.stack(obstacle, hard)
+        else:
+            rows = obstacle
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
         return _Problem(rows, points, per_point, min_barrier, np.concatenate((lower, t_low)),
                         np.concatenate((upper, t_high)), velocity, (lower, upper))
 
-    def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
-                       period: float, reaction: float) -> float:
-        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
+    def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float
+                        ) -> float:
+        """Largest approach speed [m/s] of any control point, arc terms included, for a command in the box."""
         speed = max(abs(lower[0]), abs(upper[0]))
         turn = max(abs(lower[1]), abs(upper[1]))
         if velocity is not None:
             speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
         kappa = 0.5 * self.robot.omega_max * period
-        control = self.body.centres + np.array([self.lookahead, 0.0])
-        arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))
-        approach = (speed + arm * turn) * (1.0 + kappa)
-        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0)
+        return (speed + self._arm * turn) * (1.0 + kappa)
+
+    def _braking_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
+                       reaction: float) -> float:
+        """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box."""
+        approach = self._approach_bound(lower, upper, velocity, period)
+        return approach * reaction + approach**2 / (2.0 * self.robot.a_max) + 1e-9
+
+    def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
+                       period: float, reaction: float) -> float:
+        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
+        approach = self._approach_bound(lower, upper, velocity, period)
+        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0) + 1e-9
         if velocity is not None:
-            reach = max(reach, approach * reaction + approach**2 / (2.0 * self.robot.a_max))
-        return reach + 1e-9
+            reach = max(reach, self._braking_reach(lower, upper, velocity, period, reaction))
+        return reach
 
     @staticmethod
     def _lifted(u: np.ndarray, problem: _Problem) -> np.ndarray:
@@ -336,16 +358,17 @@ class CBFSafetyFilter(SafetyFilter):
             t = np.maximum(t, np.abs(problem.velocity))
         return np.concatenate((u, t))
 
-    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
-        P = self._P
+    def _target(self, u_nom: np.ndarray) -> np.ndarray:
+        """The command the QP's cost pulls towards: ``u_nom`` clipped to the limits, blended with the
+        previous command by ``smoothing`` ((1/2)|u - u_nom|^2_W + (s/2)|u - u_previous|^2_W, up to a factor)."""
         # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
         target = np.clip(u_nom, self.robot.lower, self.robot.upper)
         smoothing = self.config.smoothing if self._called else 0.0
-        if smoothing > 0.0:
-            # (1/2)|u - u_nom|^2_W + (s/2)|u - u_previous|^2_W: the feasible set is unchanged.
-            P = P.copy()
-            P[:2, :2] *= 1.0 + smoothing
-            target = (target + smoothing * self._last_command) / (1.0 + smoothing)
+        return (target + smoothing * self._last_command) / (1.0 + smoothing) if smoothing > 0.0 else target
+
+    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
+        P = self._P
+        target = self._target(u_nom)
         q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
         lower, upper = problem.lower, problem.upper
         abs_rows = families.abs_rows()
@@ -406,6 +429,11 @@ class CBFSafetyFilter(SafetyFilter):
             return FilterResult(u=u_nom, u_nom=u_nom, status=FilterStatus.OK, **details)
 
         candidate = np.flatnonzero(self._prune(rows, problem))
+        if candidate.size == 0:
+            # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
+            u = np.clip(self._target(u_nom), lower, upper)
+            return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK, reason=self._binding(
+                u, u_nom, rows, np.full(len(rows), -np.inf), points, problem), **details)
         cand = rows.take(candidate)
         direct_rows = min(self.backend.direct_rows, DIRECT_ROWS)
         if candidate.size <= direct_rows:

@@ -100,6 +100,8 @@ def beam_points(scans: tuple[LaserScan, ...], body_radius: float, max_distance: 
             keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
             index, ranges = index[keep], ranges[keep]
         pieces.append(scan.beam_points(index, ranges))
+    if len(pieces) == 1:
+        return pieces[0]
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
@@ -222,9 +224,7 @@ def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float
         side_tolerance: outline samples whose outward normal is within this angle of
             sideways do not forbid translation [rad].
     """
-    outline = body.outline
-    layout = _layout(tuple(_layout_key(scan) for scan in scans), outline.tobytes() if outline is not None else b"",
-                     float(body.radii[0]) if outline is None else 0.0, side_tolerance, body.reach)
+    layout = _layout(tuple(_layout_key(scan) for scan in scans), *body.key, side_tolerance, body.reach)
     if all(scan.n_informative == scan.n_beams for scan in scans):
         return layout.clear
     points, normals = body.boundary()
@@ -327,15 +327,17 @@ class PointMemory:
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
         """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity.
 
-        Everything else is forgotten; the points are stored in the current base frame.
+        Everything else is forgotten; the points are stored in the current base frame. Without
+        recalled points the current ones are kept as they are (``current`` must not be changed
+        afterwards) and the range and capacity are applied when they are recalled.
         """
-        points = np.vstack((current, recalled)) if recalled.shape[0] else current
-        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty)) if recalled.shape[0] \
-            else np.zeros(current.shape[0])
-        distance = np.hypot(points[:, 0], points[:, 1])
-        keep = distance <= self.max_range
-        points, uncertainty, distance = points[keep], uncertainty[keep], distance[keep]
+        if recalled.shape[0]:
+            points = np.vstack((current, recalled))
+            uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+        else:
+            points, uncertainty = current, np.zeros(current.shape[0])
         if points.shape[0] > self.capacity:
+            distance = np.hypot(points[:, 0], points[:, 1])
             order = np.argsort(distance, kind="stable")[: self.capacity]
             points, uncertainty = points[order], uncertainty[order]
         self._points, self._uncertainty = points, uncertainty

@@ -81,9 +81,11 @@ def _rows(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: str) -> Rows:
 
 def stack(*blocks: Rows) -> Rows:
     """One block of all the rows of ``blocks``."""
-    blocks = tuple(block for block in blocks if len(block))
+    blocks = tuple(block for block in blocks if block.h.size)
     if not blocks:
         return Rows(np.empty((0, 4)), np.empty(0), np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    if len(blocks) == 1:
+        return blocks[0]
     return Rows(np.vstack([b.G for b in blocks]), np.concatenate([b.h for b in blocks]),
                 np.concatenate([b.point for b in blocks]), np.concatenate([b.family for b in blocks]))
 
@@ -101,9 +103,10 @@ class Geometry(NamedTuple):
     approach: np.ndarray
     """``(K, 2)`` ``a_j(o)``: the approach rate of the pair is ``approach . (v, omega)`` [1, m]."""
     arc: np.ndarray
-    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``."""
-    bearing: np.ndarray
-    """``(K,)`` direction of the point from the control point, relative to the heading [rad]."""
+    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``.
+
+    The cosine of the point's bearing from the control point, relative to the heading, is
+    ``approach[:, 0]`` (``-n_x``)."""
 
 
 def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, radii: np.ndarray,
@@ -120,23 +123,28 @@ def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, r
         kappa: arc coefficient ``omega_max dt / 2`` (see :func:`barrier_rows`).
     """
     control = centres + np.array([lookahead, 0.0])
+    count, disks = points.shape[0], control.shape[0]
     dx = control[None, :, 0] - points[:, None, 0]
     dy = control[None, :, 1] - points[:, None, 1]
-    distance = np.hypot(dx, dy)
+    distance = np.sqrt(dx * dx + dy * dy)
     degenerate = distance < 1e-9
     if degenerate.any():   # a point exactly at a control point: push it back along -x
         dx, dy, distance = np.where(degenerate, 1.0, dx), np.where(degenerate, 0.0, dy), np.where(degenerate, 1.0,
                                                                                                     distance)
+        barrier = np.where(degenerate, 0.0, distance)
+    else:
+        barrier = distance
     nx, ny = dx / distance, dy / distance
-    barrier = np.where(degenerate, 0.0, distance) - (radii[None, :] + lookahead + margin + uncertainty[:, None])
-    px, py = control[None, :, 0], control[None, :, 1]
-    approach = np.stack((-nx, nx * py - ny * px), axis=-1).reshape(-1, 2)
-    reach = np.hypot(control[:, 0], control[:, 1])
-    arc = np.column_stack((np.full(control.shape[0], kappa), kappa * reach))
-    count, disks = distance.shape
-    bearing = np.arctan2(-dy, -dx).reshape(-1)
-    return Geometry(np.repeat(np.arange(count), disks), barrier.reshape(-1), approach,
-                    np.tile(arc, (count, 1)), bearing)
+    barrier = barrier - (radii[None, :] + lookahead + margin) - uncertainty[:, None]
+    approach = np.empty((count, disks, 2))
+    approach[..., 0] = -nx
+    approach[..., 1] = nx * control[None, :, 1] - ny * control[None, :, 0]
+    reach = np.sqrt(control[:, 0] ** 2 + control[:, 1] ** 2)
+    arc = np.empty((count, disks, 2))
+    arc[..., 0] = kappa
+    arc[..., 1] = kappa * reach[None, :]
+    point = np.repeat(np.arange(count), disks) if disks > 1 else np.arange(count)
+    return Geometry(point, barrier.reshape(-1), approach.reshape(-1, 2), arc.reshape(-1, 2))
 
 
 def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
@@ -218,12 +226,16 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
     """
     sweep = (abs(velocity[1]) + alpha * dt) * (abs(velocity[0]) / accel + reaction)
     limit = stopping_speed(geo.barrier, accel, reaction)
+    forward = geo.approach[:, 0]                 # cos of the bearing from the control point
     blocks = []
-    for sign, off_axis in ((1.0, np.abs(geo.bearing)), (-1.0, math.pi - np.abs(geo.bearing))):
-        effective = np.maximum(off_axis - sweep, 0.0)
-        inside = np.flatnonzero(effective < 0.5 * math.pi - 1e-6)
+    for sign, cosine in ((1.0, forward), (-1.0, -forward)):
+        # cos(max(acos(cosine) - sweep, 0)), without trigonometry per point
+        effective = np.where(cosine >= math.cos(min(sweep, math.pi)), 1.0,
+                             cosine * math.cos(sweep) + np.sqrt(np.maximum(1.0 - cosine * cosine, 0.0)) *
+                             math.sin(sweep))
+        inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(cosine.size)
         G = np.zeros((inside.size, 4))
-        G[:, 0] = sign * np.cos(effective[inside])
+        G[:, 0] = sign * np.minimum(effective[inside], 1.0)
         G[:, 2:] = geo.arc[inside]
         blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
     return stack(*blocks)
