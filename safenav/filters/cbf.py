@@ -159,6 +159,7 @@ class _Problem(NamedTuple):
     upper: np.ndarray
     velocity: np.ndarray | None
     limits: tuple[np.ndarray, np.ndarray]   # the command's box (velocity limits and reachability)
+    clearance: float            # distance from the body to the nearest point [m]
 
 
 class CBFSafetyFilter(SafetyFilter):
@@ -255,6 +256,10 @@ class CBFSafetyFilter(SafetyFilter):
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
         control = self.body.centres + np.array([self.lookahead, 0.0])
         self._arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))   # farthest control point [m]
+        control_distance = np.hypot(control[:, 0], control[:, 1])
+        radius = self.body.radii + self.lookahead + self.margin
+        # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
+        self._extent = (float(np.max(control_distance - radius)), float(np.max(control_distance + radius)))
         self.backend: QPBackend = make_backend(cfg.solver)
 
     def __repr__(self) -> str:
@@ -278,23 +283,23 @@ class CBFSafetyFilter(SafetyFilter):
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
         points, uncertainty = view.points, view.uncertainty
+        distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+        clearance = self._clearance(points, distance)
         if cut and points.shape[0]:
             # Before any trigonometry: a point farther from the base than the reach of every row plus the
             # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
-            control = np.hypot(body.centres[:, 0] + self.lookahead, body.centres[:, 1])
-            distance = np.hypot(points[:, 0], points[:, 1])
-            radius = body.radii + self.lookahead + self.margin
-            ceiling = float(np.min(distance - uncertainty)) + float(np.max(control - radius))
+            ceiling = float(np.min(distance - uncertainty)) + self._extent[0]
             reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction)
-            near = distance - uncertainty <= reach + float(np.max(control + radius))
-            points, uncertainty = points[near], uncertainty[near]
-        geo = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead, self.margin, kappa)
-        disks = body.n_disks
-        per_point = geo.barrier.reshape(-1, disks).min(axis=1) if geo.barrier.size else np.empty(0)
+            near = distance - uncertainty <= reach + self._extent[1]
+            if not near.all():
+                points, uncertainty = points[near], uncertainty[near]
+
+        def limit(smallest: float) -> float:
+            return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+
+        geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
+                                           self.margin, kappa, limit if cut else None)
         min_barrier = float(per_point.min()) if per_point.size else math.inf
-        if cut and geo.barrier.size:
-            keep = geo.barrier <= self._binding_reach(lower, upper, velocity, min_barrier, period, reaction)
-            geo = families.Geometry(*(array[keep] for array in geo))
         barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
         obstacle = barrier
         if velocity is not None:
@@ -323,7 +328,18 @@ class CBFSafetyFilter(SafetyFilter):
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
         return _Problem(rows, points, per_point, min_barrier, np.concatenate((lower, t_low)),
-                        np.concatenate((upper, t_high)), velocity, (lower, upper))
+                        np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
+
+    def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
+        """Distance from the body's disks to the nearest point [m] (``distance``: each point's from the base)."""
+        if points.shape[0] == 0:
+            return math.inf
+        body = self.body
+        if body.n_disks == 1 and not body.centres.any():
+            return float(distance.min()) - float(body.radii[0])
+        # Only points near the nearest one can be nearest to some disk.
+        offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
+        return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
 
     def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float
                         ) -> float:
@@ -421,8 +437,7 @@ class CBFSafetyFilter(SafetyFilter):
         problem = self._constraints(view, velocity, period)
         rows = problem.rows
         points = problem.points
-        details: dict[str, Any] = dict(min_barrier=problem.min_barrier,
-                                       clearance=self.body.clearance(view.points))
+        details: dict[str, Any] = dict(min_barrier=problem.min_barrier, clearance=problem.clearance)
         lower, upper = problem.limits
         if (lower[0] <= u_nom[0] <= upper[0] and lower[1] <= u_nom[1] <= upper[1]
                 and (rows.G @ self._lifted(u_nom, problem) <= rows.h).all()):

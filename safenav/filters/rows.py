@@ -24,6 +24,7 @@ rate at which ``p_j`` approaches ``o`` is ``a_j(o) . (v, omega)`` with
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -110,7 +111,8 @@ class Geometry(NamedTuple):
 
 
 def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-             lookahead: float, margin: float, kappa: float) -> Geometry:
+             lookahead: float, margin: float, kappa: float,
+             limit: Callable[[float], float] | None = None) -> tuple[Geometry, np.ndarray]:
     """Barrier values and approach directions of every point against every body disk.
 
     Args:
@@ -121,30 +123,46 @@ def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, r
         lookahead: look-ahead distance ``l`` of the control points [m].
         margin: clearance kept between the disks and every point [m].
         kappa: arc coefficient ``omega_max dt / 2`` (see :func:`barrier_rows`).
+        limit: given the smallest barrier ``H``, the largest barrier a kept pair may have [m]
+            (pairs beyond it are dropped before their directions are computed); ``None`` keeps all.
+
+    Returns:
+        The kept pairs' geometry, and every point's smallest barrier over the disks ``(N,)`` [m].
     """
     control = centres + np.array([lookahead, 0.0])
     count, disks = points.shape[0], control.shape[0]
-    dx = control[None, :, 0] - points[:, None, 0]
-    dy = control[None, :, 1] - points[:, None, 1]
+    if disks == 1:
+        dx = control[0, 0] - points[:, 0]
+        dy = control[0, 1] - points[:, 1]
+    else:
+        dx = (control[None, :, 0] - points[:, None, 0]).reshape(-1)
+        dy = (control[None, :, 1] - points[:, None, 1]).reshape(-1)
     distance = np.sqrt(dx * dx + dy * dy)
+    pair_uncertainty = uncertainty if disks == 1 else np.repeat(uncertainty, disks)
+    offsets = radii + (lookahead + margin)
+    barrier = distance - (offsets[0] if disks == 1 else np.tile(offsets, count)) - pair_uncertainty
+    per_point = barrier if disks == 1 else barrier.reshape(count, disks).min(axis=1)
+    pair_point = np.arange(count) if disks == 1 else np.repeat(np.arange(count), disks)
+    disk = np.zeros(count, dtype=np.intp) if disks == 1 else np.tile(np.arange(disks), count)
+    if limit is not None and count:
+        keep = np.flatnonzero(barrier <= limit(float(per_point.min())))
+        dx, dy, distance, barrier, pair_point, disk = (array[keep] for array in
+                                                       (dx, dy, distance, barrier, pair_point, disk))
     degenerate = distance < 1e-9
     if degenerate.any():   # a point exactly at a control point: push it back along -x
         dx, dy, distance = np.where(degenerate, 1.0, dx), np.where(degenerate, 0.0, dy), np.where(degenerate, 1.0,
                                                                                                     distance)
-        barrier = np.where(degenerate, 0.0, distance)
-    else:
-        barrier = distance
+        barrier = np.where(degenerate, -offsets[disk] - pair_uncertainty[pair_point] if disks > 1
+                           else -offsets[0] - uncertainty[pair_point], barrier)
     nx, ny = dx / distance, dy / distance
-    barrier = barrier - (radii[None, :] + lookahead + margin) - uncertainty[:, None]
-    approach = np.empty((count, disks, 2))
-    approach[..., 0] = -nx
-    approach[..., 1] = nx * control[None, :, 1] - ny * control[None, :, 0]
+    approach = np.empty((barrier.size, 2))
+    approach[:, 0] = -nx
+    approach[:, 1] = nx * control[disk, 1] - ny * control[disk, 0]
     reach = np.sqrt(control[:, 0] ** 2 + control[:, 1] ** 2)
-    arc = np.empty((count, disks, 2))
-    arc[..., 0] = kappa
-    arc[..., 1] = kappa * reach[None, :]
-    point = np.repeat(np.arange(count), disks) if disks > 1 else np.arange(count)
-    return Geometry(point, barrier.reshape(-1), approach.reshape(-1, 2), arc.reshape(-1, 2))
+    arc = np.empty((barrier.size, 2))
+    arc[:, 0] = kappa
+    arc[:, 1] = kappa * reach[disk]
+    return Geometry(pair_point, barrier, approach, arc), per_point
 
 
 def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
