@@ -394,7 +394,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
     footprint = None
-    if episode.settings.get("body") == "cover" and robot.footprint is not None:
+    if episode.settings.get("body") in ("cover", "polygon") and robot.footprint is not None:
         footprint = np.asarray(robot.footprint, dtype=float)   # the guarantee is then for the footprint
 
     def truth(poses: np.ndarray) -> np.ndarray:
@@ -622,7 +622,7 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
 # ---------------------------------------------------------------------------------------------- command line
 
 
-BODIES = ("disk", "cover")
+BODIES = ("disk", "polygon", "cover")
 """Body models searched: the circumscribed disk, and the cover of the footprint (its truth is then the polygon)."""
 
 

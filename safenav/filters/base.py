@@ -621,7 +621,7 @@ class SafetyFilter(abc.ABC):
 
     def _observe(self, scans: tuple[LaserScan, ...]) -> View:
         """Obstacle points (current and remembered) and the unknown region of this call."""
-        current = beam_points(scans, self.robot.radius)
+        current = beam_points(scans, self.body)
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)

@@ -7,6 +7,10 @@ base frame (REP-103, x forward):
 * ``BodyModel.disk(robot)``: the circumscribed disk of radius ``robot.radius`` around the
   base origin (the classic model; a point of it needs a look-ahead to be steered, since
   turning in place does not move the origin);
+* ``BodyModel.polygon(robot)``: the footprint polygon itself (convex), for the exact
+  point-to-polygon barrier (:func:`~safenav.filters.rows.polygon_geometry`): no area excess,
+  and the polygon's corners move sideways when the robot turns, so it steers without any
+  look-ahead;
 * ``BodyModel.cover(robot, n)``: ``n`` equal disks whose centres lie along the base x axis
   (the direction of travel, so that the width the disks add to the footprint's is as small
   as possible in a door), each the circumscribed disk of one ``1/n`` slice of the
@@ -93,6 +97,23 @@ class BodyModel:
         return cls(np.zeros((1, 2)), np.array([robot.radius]), None, "disk")
 
     @classmethod
+    def polygon(cls, robot: RobotSpec) -> BodyModel:
+        """The footprint polygon (a round robot without one keeps its disk).
+
+        Raises:
+            InvalidConfig: the footprint is not convex (the exact barrier needs a convex polygon).
+        """
+        if robot.footprint is None:
+            return cls.disk(robot)
+        polygon = _counter_clockwise(np.asarray(robot.footprint, dtype=float))
+        edges = np.roll(polygon, -1, axis=0) - polygon
+        turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+        if np.any(turns < -1e-12):
+            raise _checks.InvalidConfig(f"the polygon body model needs a convex footprint, got {robot.footprint!r}; "
+                                        "use body='cover' for a concave one")
+        return cls(np.zeros((1, 2)), np.array([robot.radius]), polygon, "polygon")
+
+    @classmethod
     def cover(cls, robot: RobotSpec, n_disks: int) -> BodyModel:
         """``n_disks`` equal disks along the base x axis that cover the footprint's bounding rectangle.
 
@@ -128,10 +149,12 @@ class BodyModel:
         return float(np.max(np.hypot(self.centres[:, 0], self.centres[:, 1]) + self.radii))
 
     def clearance(self, points: np.ndarray) -> float:
-        """Smallest distance from the disks to ``points`` ``(N, 2)`` [m] (``inf`` without points)."""
+        """Smallest distance from the body (its disks or polygon) to ``points`` ``(N, 2)`` [m] (``inf`` if none)."""
         points = np.asarray(points, dtype=float).reshape(-1, 2)
         if points.shape[0] == 0:
             return math.inf
+        if self.name == "polygon":
+            return float(polygon_distance(self.outline, points).min())
         gaps = np.hypot(points[:, None, 0] - self.centres[None, :, 0],
                         points[:, None, 1] - self.centres[None, :, 1]) - self.radii[None, :]
         return float(gaps.min())

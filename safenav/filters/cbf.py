@@ -42,7 +42,7 @@ MAX_GENERATION_ROUNDS = 8
 #: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
 #: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
-BODIES = ("disk", "cover")
+BODIES = ("disk", "polygon", "cover")
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,8 @@ class CBFConfig:
             ``0.02 m + 2 noise_std + 1 m x angle_increment``.
         lookahead: distance of the control points ahead of the disk centres [m]; default
             0.1 m for the single disk (whose centre turning does not move), 0 for a cover.
-        body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the footprint).
+        body: ``"disk"`` (the circumscribed disk), ``"polygon"`` (the exact convex footprint) or
+            ``"cover"`` (``n_disks`` disks covering the footprint).
         n_disks: disks of the cover (default 3).
         solver: QP back-end name (``"daqp"``, ``"quadprog"``, ``"osqp"``, any qpsolvers solver;
             case-insensitive).
@@ -142,7 +143,8 @@ class CBFConfig:
             far_gamma=max(gamma, self.far_gamma if self.far_gamma is not None else 1.0),
             margin=self.margin if self.margin is not None else default_margin(robot),
             lookahead=self.lookahead if self.lookahead is not None else (
-                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),
+                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),   # the polygon and the
+            # cover steer without one: their points off the base origin move sideways when the robot turns
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
         )
@@ -244,7 +246,8 @@ class CBFSafetyFilter(SafetyFilter):
         self.config = base_config.resolve(robot, dt)
         cfg = self.config
         self.margin = float(cfg.margin)
-        body = BodyModel.cover(robot, cfg.n_disks) if cfg.body == "cover" else BodyModel.disk(robot)
+        body = {"disk": BodyModel.disk, "polygon": BodyModel.polygon,
+                "cover": lambda spec: BodyModel.cover(spec, cfg.n_disks)}[cfg.body](robot)
         super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
@@ -254,12 +257,22 @@ class CBFSafetyFilter(SafetyFilter):
         self.far_gamma = float(cfg.far_gamma)
         self.lookahead = float(cfg.lookahead)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
-        control = self.body.centres + np.array([self.lookahead, 0.0])
-        self._arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))   # farthest control point [m]
-        control_distance = np.hypot(control[:, 0], control[:, 1])
-        radius = self.body.radii + self.lookahead + self.margin
-        # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
-        self._extent = (float(np.max(control_distance - radius)), float(np.max(control_distance + radius)))
+        self._polygon = self.body.outline if self.body.name == "polygon" else None
+        if self._polygon is not None:
+            vertices = np.hypot(self._polygon[:, 0], self._polygon[:, 1])
+            edge = np.roll(self._polygon, -1, axis=0) - self._polygon
+            normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.hypot(edge[:, 0], edge[:, 1])[:, None]
+            inradius = float(np.min(np.einsum("ij,ij->i", normal, self._polygon)))   # origin to the nearest edge
+            self._arm = float(vertices.max())          # the farthest body point [m]
+            # Bounds for the cut before any trigonometry: H <= |o_min| - inradius - margin, h(o) >= |o| - R - margin.
+            self._extent = (-inradius - self.margin, self._arm + self.margin)
+        else:
+            control = self.body.centres + np.array([self.lookahead, 0.0])
+            control_distance = np.hypot(control[:, 0], control[:, 1])
+            self._arm = float(np.max(control_distance))   # the farthest control point [m]
+            radius = self.body.radii + self.lookahead + self.margin
+            # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
+            self._extent = (float(np.max(control_distance - radius)), float(np.max(control_distance + radius)))
         self.backend: QPBackend = make_backend(cfg.solver)
 
     def __repr__(self) -> str:
@@ -289,23 +302,33 @@ class CBFSafetyFilter(SafetyFilter):
             # Before any trigonometry: a point farther from the base than the reach of every row plus the
             # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
             ceiling = float(np.min(distance - uncertainty)) + self._extent[0]
-            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction)
+            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
             near = distance - uncertainty <= reach + self._extent[1]
             if not near.all():
                 points, uncertainty = points[near], uncertainty[near]
+        if self._polygon is not None:
+            kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
-        def limit(smallest: float) -> float:
-            return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+            def polygon_limit(smallest: float) -> np.ndarray:
+                return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
 
-        geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
-                                           self.margin, kappa, limit if cut else None)
+            geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
+                                                       polygon_limit if cut else None)
+        else:
+            def limit(smallest: float) -> float:
+                return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+
+            geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
+                                               self.margin, kappa, limit if cut else None)
         min_barrier = float(per_point.min()) if per_point.size else math.inf
         barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
         obstacle = barrier
         if velocity is not None:
             # The braking and sweep rows can bind only within the braking reach (their right side, the
             # stopping speed, exceeds every approach speed the box allows beyond it).
-            near = geo.barrier <= self._braking_reach(lower, upper, velocity, period, reaction)
+            pair_distance = 0.0 if self._polygon is None else np.sqrt(points[geo.point, 0] ** 2 +
+                                                                      points[geo.point, 1] ** 2)
+            near = geo.barrier <= self._braking_reach(lower, upper, velocity, period, reaction, pair_distance)
             close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
             braking = families.braking_rows(close, robot.a_max, reaction)
             h = barrier.h.copy()
@@ -331,39 +354,47 @@ class CBFSafetyFilter(SafetyFilter):
                         np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
 
     def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
-        """Distance from the body's disks to the nearest point [m] (``distance``: each point's from the base)."""
+        """Distance from the body to the nearest point [m] (``distance``: each point's from the base)."""
         if points.shape[0] == 0:
             return math.inf
         body = self.body
+        if self._polygon is not None:
+            # Only points within the polygon's extent of the nearest one can be nearest to the polygon.
+            return body.clearance(points[distance <= float(distance.min()) + 2.0 * self._arm + 1e-9])
         if body.n_disks == 1 and not body.centres.any():
             return float(distance.min()) - float(body.radii[0])
         # Only points near the nearest one can be nearest to some disk.
         offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
         return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
 
-    def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float
-                        ) -> float:
-        """Largest approach speed [m/s] of any control point, arc terms included, for a command in the box."""
+    def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
+                        distance: float | np.ndarray = 0.0) -> float | np.ndarray:
+        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box.
+
+        For the polygon body the arc term grows with the obstacle point's ``distance`` from the
+        base origin [m] (scalar or per point); for disks it does not.
+        """
         speed = max(abs(lower[0]), abs(upper[0]))
         turn = max(abs(lower[1]), abs(upper[1]))
         if velocity is not None:
             speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
         kappa = 0.5 * self.robot.omega_max * period
-        return (speed + self._arm * turn) * (1.0 + kappa)
+        bound = (speed + self._arm * turn) * (1.0 + kappa)
+        return bound + kappa * turn * distance if self._polygon is not None else bound
 
     def _braking_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
-                       reaction: float) -> float:
+                       reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
         """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box."""
-        approach = self._approach_bound(lower, upper, velocity, period)
+        approach = self._approach_bound(lower, upper, velocity, period, distance)
         return approach * reaction + approach**2 / (2.0 * self.robot.a_max) + 1e-9
 
     def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
-                       period: float, reaction: float) -> float:
+                       period: float, reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
         """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
-        approach = self._approach_bound(lower, upper, velocity, period)
+        approach = self._approach_bound(lower, upper, velocity, period, distance)
         reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0) + 1e-9
         if velocity is not None:
-            reach = max(reach, self._braking_reach(lower, upper, velocity, period, reaction))
+            reach = np.maximum(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
         return reach
 
     @staticmethod

@@ -62,40 +62,58 @@ def body_clearance(points: np.ndarray, body_radius: float) -> float:
     return float(np.hypot(points[:, 0], points[:, 1]).min()) - body_radius if len(points) else math.inf
 
 
-def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Beams that give an obstacle point, and the range to put it at [m], for a body of ``body_radius``.
+def obstacle_beams(scan: LaserScan, body: BodyModel | float) -> tuple[np.ndarray, np.ndarray]:
+    """Beams that give an obstacle point, and the range to put it at [m], for ``body``.
 
     ``HIT`` beams keep their range. A ``TOO_CLOSE`` beam (``-inf``) says an object is closer
-    than ``range_min``, maybe touching the body: it is put where the beam leaves the disk of
-    ``body_radius`` around the base origin, or at ``range_min`` if that is nearer. A filter
-    then sees the robot as inside its margin and backs out of the lidar's blind zone instead
-    of trusting a clearance it cannot measure (a lidar whose ``range_min`` exceeds the body
-    radius plus the margin cannot see the margin).
+    than ``range_min``, maybe touching the body: it is put where the beam leaves the body's
+    outline (the footprint polygon, or the disk; a number is the radius of a disk around the
+    base origin), or at ``range_min`` if that is nearer. A filter then sees the robot as inside
+    its margin and backs out of the lidar's blind zone instead of trusting a clearance it cannot
+    measure (a lidar whose ``range_min`` exceeds the distance to the body's edge plus the margin
+    cannot see the margin).
     """
     index, ranges = scan.obstacle_beams()
     too_close = scan.ranges[index] == -math.inf
     if too_close.any():
         geometry = scan.geometry
-        mx, my = scan.mount.x, scan.mount.y
-        cos, sin = geometry.cos_base[index[too_close]], geometry.sin_base[index[too_close]]
-        along = mx * cos + my * sin
-        inside = body_radius**2 - (mx * mx + my * my)
-        if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
-            exit_range = -along + np.sqrt(along**2 + inside)
-            ranges[too_close] = np.minimum(ranges[too_close], exit_range)
+        origin = np.array([scan.mount.x, scan.mount.y])
+        beams = index[too_close]
+        direction = np.column_stack((geometry.cos_base[beams], geometry.sin_base[beams]))
+        outline = None if not isinstance(body, BodyModel) else body.outline
+        if outline is None:
+            radius = body if not isinstance(body, BodyModel) else float(body.radii[0])
+            along = direction @ origin
+            inside = radius**2 - float(origin @ origin)
+            if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
+                ranges[too_close] = np.minimum(ranges[too_close], -along + np.sqrt(along**2 + inside))
+        else:
+            ranges[too_close] = np.minimum(ranges[too_close], _exit_ranges(origin, direction, outline))
     return index, ranges
 
 
-def beam_points(scans: tuple[LaserScan, ...], body_radius: float, max_distance: float = math.inf
+def _exit_ranges(origin: np.ndarray, direction: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """How far rays from ``origin`` (inside the convex ``polygon``) along ``direction`` ``(K, 2)`` leave it [m]."""
+    a = polygon
+    edge = np.roll(a, -1, axis=0) - a
+    normal = np.column_stack((edge[:, 1], -edge[:, 0]))           # outward for a counter-clockwise polygon
+    depth = np.einsum("vi,vi->v", normal, a) - normal @ origin    # >= 0 while the origin is inside
+    speed = direction @ normal.T                                  # (K, V): how fast each ray nears each edge
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(speed > 1e-12, depth[None, :] / speed, np.inf)
+    return np.maximum(np.min(reach, axis=1), 0.0)
+
+
+def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_distance: float = math.inf
                 ) -> np.ndarray:
-    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m].
+    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m] (``body``: see :func:`obstacle_beams`).
 
     With ``max_distance``, beams whose point cannot be within ``max_distance`` of the base
     origin (range beyond ``max_distance + |mount|``) are skipped before any trigonometry.
     """
     pieces = []
     for scan in scans:
-        index, ranges = obstacle_beams(scan, body_radius)
+        index, ranges = obstacle_beams(scan, body)
         if math.isfinite(max_distance):
             keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
             index, ranges = index[keep], ranges[keep]
