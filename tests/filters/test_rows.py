@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from safenav import Pose2D, preset, unicycle_step
 from safenav.filters import rows as families
-from safenav.filters.body import BodyModel
+from safenav.filters.body import BodyModel, polygon_distance
 from safenav.filters.defaults import lag_fraction
 
 DT = 0.05
@@ -168,3 +168,42 @@ def test_blind_rows_forbid_exactly_the_blocked_directions():
     assert np.all(both.hard) and not np.any(families.barrier_rows(
         families.geometry(np.array([[1.0, 0.0]]), np.zeros(1), np.zeros((1, 2)), np.array([0.2]), 0.0, 0.0, 0.0)[0],
         0.5, 1.0, DT).hard)
+
+
+@st.composite
+def polygon_pairs(draw):
+    """Random points outside a footprint polygon, and a command."""
+    robot = preset(draw(st.sampled_from(["rosbot", "m2wr"])))
+    body = BodyModel.polygon(robot)
+    count = draw(st.integers(1, 20))
+    points = np.array([[draw(st.floats(-2, 2, **finite)), draw(st.floats(-2, 2, **finite))] for _ in range(count)])
+    assume(body.clearance(points) > 0.005)
+    command = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
+    return robot, body, points, command
+
+
+@settings(max_examples=600)
+@given(polygon_pairs(), st.floats(0.01, 1.0))
+def test_polygon_barrier_rows_keep_the_condition_for_the_exact_unicycle(case, gamma):
+    """The point-to-polygon barrier: rows that hold give H(x+) >= (1 - gamma) H(x), turning included."""
+    robot, body, points, command = case
+    kappa = 0.5 * robot.omega_max * DT
+    geo, _ = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.03, kappa)
+    rows = families.barrier_rows(geo, gamma, 1.0, DT)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    moved = unicycle_step(Pose2D(), *command, DT).to_local(points)
+    _, after = families.polygon_geometry(moved, np.zeros(len(points)), body.outline, 0.03, kappa)
+    assert after.min() >= (1.0 - gamma) * geo.barrier.min() - 1e-9
+
+
+@settings(max_examples=300)
+@given(polygon_pairs())
+def test_polygon_geometry_is_the_signed_distance_and_its_gradient(case):
+    robot, body, points, _ = case
+    geo, barrier = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.0, 0.0)
+    np.testing.assert_allclose(barrier, polygon_distance(body.outline, points), atol=1e-12)
+    step = 1e-6   # the gradient, by finite differences along it
+    direction = np.column_stack((geo.approach[:, 0], np.zeros(len(points))))
+    gradient_x = (polygon_distance(body.outline, points + [step, 0.0]) - barrier) / step
+    np.testing.assert_allclose(direction[:, 0], gradient_x, atol=1e-4)
