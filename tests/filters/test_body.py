@@ -101,8 +101,8 @@ def test_the_polygon_cbf_passes_a_door_of_body_width_plus_margins_plus_5_cm(name
     margin = make_filter("cbf", robot, 0.05, body="polygon").margin
     widths = [y for _, y in robot.footprint]
     width = max(widths) - min(widths) + 2 * margin + 0.05           # m2wr 0.44 m, ROSbot 0.34 m
-    outcome, log = run(Episode(robot=name, filter="cbf", base="ramp_limit", dt=0.05, segments=door(width),
-                               nominal="goal", params=(3.0, 0.0), duration=12.0, settings={"body": "polygon"}))
+    outcome, _ = run(Episode(robot=name, filter="cbf", base="ramp_limit", dt=0.05, segments=door(width),
+                             nominal="goal", params=(3.0, 0.0), duration=12.0, settings={"body": "polygon"}))
     assert not outcome.contact and outcome.min_clearance >= outcome.margin - 0.01
     assert outcome.goal_distance < 0.3, "through the door to the goal"
     disk, _ = run(Episode(robot=name, filter="cbf", base="ramp_limit", dt=0.05, segments=door(width),
