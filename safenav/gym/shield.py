@@ -1,0 +1,203 @@
+"""A safety shield for any agent: a Gymnasium ``ActionWrapper`` that filters every action.
+
+The agent's action is the nominal command ``u_nom = (v, omega)``; the shield passes it, with
+the environment's latest scan and measured velocity, through a safenav safety filter and sends
+the filtered command to the environment::
+
+    env = SafetyShield(gymnasium.make("safenav/GoToGoal-v0"))          # the CBF-QP filter
+    env = SafetyShield(env, "mpc", horizon=30)                           # by name, with settings
+    env = SafetyShield(env, CBFSafetyFilter(robot, dt=0.05, margin=0.1)) # or a filter instance
+
+It works on any environment that implements the protocol of :mod:`safenav.gym.protocol`
+(``safety_observation()``, plus ``robot`` and ``control_dt`` to build a filter by name) and
+whose action space is a ``Box`` of shape ``(2,)`` holding ``(0, 0)``. A filter built by name
+is given the robot's limits narrowed to the action space, so every command it sends lies
+inside the wrapped environment's action space.
+
+What it adds to each step:
+
+* ``info["shield"]``: the step's :class:`~safenav.filters.FilterResult` as plain values
+  (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``modified``,
+  ``intervention``, ``min_barrier`` and ``clearance`` (the filter's estimate from the scan
+  [m]); the result itself, with the solver and its timing, is :attr:`SafetyShield.last_result`
+  (timings are left out of ``info`` so that the same seed gives the same infos);
+* an optional **intervention penalty** (off by default): with ``intervention_penalty=w`` the
+  reward is lowered by ``w * ||u - clip(u_nom)||``, where ``clip(u_nom)`` is the agent's
+  action clipped into the action space (the change the filter made for safety, in
+  ``(m/s, rad/s)``; a non-finite action counts as the diagonal of the box). It teaches the
+  agent to need the shield less; it does not change what the shield lets through.
+
+``reset()`` also resets the filter's warm-start state.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from safenav._checks import boolean, number
+from safenav._optional import require
+from safenav.errors import InvalidConfig
+from safenav.filters import FILTER_NAMES, FilterResult, SafetyFilter, make_filter
+from safenav.gym.errors import FeatureUnavailable, UnsupportedEnv
+from safenav.gym.protocol import SafetyObservation, describe
+from safenav.robot import RobotSpec
+
+gymnasium = require("gymnasium", extra="gym", purpose="safenav's Gymnasium shield")
+
+__all__ = ["SafetyShield", "shield_info"]
+
+ESCAPE_MODULE = "safenav.filters.escape"
+"""Where the liveness escape wrapper that ``escape=True`` will use is to live."""
+
+
+def shield_info(result: FilterResult) -> dict[str, Any]:
+    """The filter result of one step as plain values for ``info["shield"]`` (fresh arrays every call)."""
+    return {
+        "u_nom": np.array(result.u_nom, dtype=float),
+        "u": np.array(result.u, dtype=float),
+        "status": result.status.value,
+        "message": result.message,
+        "modified": result.modified,
+        "intervention": result.intervention,
+        "min_barrier": float(result.min_barrier),
+        "clearance": float(result.clearance),
+    }
+
+
+def _wrapper_attr(env: Any, name: str) -> Any:
+    """``name`` from the first layer of the wrapper stack that has it, or ``None``."""
+    try:
+        return env.get_wrapper_attr(name)
+    except AttributeError:
+        return None
+
+
+def _narrowed(robot: RobotSpec, low: np.ndarray, high: np.ndarray) -> RobotSpec:
+    """``robot`` with its velocity limits narrowed to the box ``[low, high]`` (which holds ``(0, 0)``)."""
+    v_max, v_min = min(robot.v_max, float(high[0])), max(robot.v_min, float(low[0]))
+    omega_max = min(robot.omega_max, float(high[1]), -float(low[1]))
+    if (v_max, v_min, omega_max) == (robot.v_max, robot.v_min, robot.omega_max):
+        return robot
+    if v_max <= 0.0 or omega_max <= 0.0:
+        raise UnsupportedEnv(f"SafetyShield: the action space [{low.tolist()}, {high.tolist()}] leaves robot "
+                             f"{robot.name!r} no forward speed or no turn; expected v_max > 0 and a yaw rate range "
+                             "around 0")
+    return robot.replace(v_max=v_max, v_min=v_min, omega_max=omega_max)
+
+
+class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArgs):
+    """Filter every action of the agent through a safenav safety filter (see the module docstring).
+
+    Args:
+        env: the environment; it (or a wrapper in its stack) implements the shield protocol.
+        filter: a filter name (``"cbf"``, ``"mpc"``, ``"zones"``), built for the environment's
+            ``robot`` and ``control_dt`` with ``filter_settings``, or a
+            :class:`~safenav.filters.SafetyFilter` instance (its ``dt`` must equal the
+            environment's ``control_dt`` when it has one; an environment re-made from
+            ``env.spec`` shares the instance, a name gives each its own filter).
+        escape: add the liveness escape (a nominal that leaves a deadlock, itself filtered).
+            Not available yet: ``True`` raises :class:`~safenav.gym.errors.FeatureUnavailable`.
+        intervention_penalty: weight of the intervention penalty (module docstring), >= 0; 0 is off.
+        **filter_settings: settings of a filter built by name (fields of its config).
+
+    Raises:
+        UnsupportedEnv: ``env`` lacks the protocol, or its action space is not a ``Box`` of
+            shape ``(2,)`` holding ``(0, 0)``.
+        UnknownName: an unknown filter name (the message lists them).
+        InvalidConfig: a bad setting, a filter whose period or limits do not match the environment.
+        FeatureUnavailable: ``escape=True``.
+    """
+
+    def __init__(self, env: Any, filter: str | SafetyFilter = "cbf", *, escape: bool = False,
+                 intervention_penalty: float = 0.0, **filter_settings: Any) -> None:
+        gymnasium.utils.RecordConstructorArgs.__init__(self, filter=filter, escape=escape,
+                                                        intervention_penalty=intervention_penalty, **filter_settings)
+        super().__init__(env)
+        self._source = _wrapper_attr(env, "safety_observation")
+        if not callable(self._source):
+            raise UnsupportedEnv(f"SafetyShield: {describe(env)} does not implement the shield protocol; expected a "
+                                 "method safety_observation() -> SafetyObservation (see safenav.gym.protocol)")
+        space = env.action_space
+        if not isinstance(space, gymnasium.spaces.Box) or space.shape != (2,):
+            raise UnsupportedEnv(f"SafetyShield: {describe(env)} has action space {space}; expected a Box of shape "
+                                 "(2,) holding (v [m/s], omega [rad/s])")
+        self._low, self._high = space.low.astype(float), space.high.astype(float)
+        if np.any(self._low > 0.0) or np.any(self._high < 0.0):
+            raise UnsupportedEnv(f"SafetyShield: the action space {space} of {describe(env)} does not hold the stop "
+                                 "command (0, 0); a shield must be able to stop")
+        self.intervention_penalty = number("SafetyShield.intervention_penalty", intervention_penalty, low=0.0)
+        if boolean("SafetyShield.escape", escape):
+            raise FeatureUnavailable(f"SafetyShield(escape=True) needs the liveness escape wrapper {ESCAPE_MODULE}, "
+                                     "which this safenav does not have yet; use escape=False")
+        self.filter = self._make_filter(env, filter, filter_settings)
+        self._result: FilterResult | None = None
+
+    def _make_filter(self, env: Any, chosen: str | SafetyFilter, settings: dict[str, Any]) -> SafetyFilter:
+        control_dt = _wrapper_attr(env, "control_dt")
+        if isinstance(chosen, SafetyFilter):
+            if settings:
+                raise InvalidConfig(f"SafetyShield: settings {sorted(settings)} apply to a filter built by name; "
+                                    "give them to the filter instance instead")
+            if control_dt is not None and abs(chosen.dt - control_dt) > 1e-12:
+                raise InvalidConfig(f"SafetyShield: the filter's dt={chosen.dt!r} differs from the control period "
+                                    f"{control_dt!r} of {describe(env)}; make the filter with dt={control_dt!r}")
+            lower, upper = chosen.robot.lower, chosen.robot.upper
+            if np.any(lower < self._low) or np.any(upper > self._high):
+                raise InvalidConfig(f"SafetyShield: the filter's velocity limits [{lower.tolist()}, {upper.tolist()}] "
+                                    f"exceed the action space [{self._low.tolist()}, {self._high.tolist()}] of "
+                                    f"{describe(env)}; give the filter a robot within it (RobotSpec.replace)")
+            return chosen
+        robot = _wrapper_attr(env, "robot")
+        if not isinstance(chosen, str):
+            raise InvalidConfig(f"SafetyShield: filter must be a name ({', '.join(FILTER_NAMES[1:])}) or a "
+                                f"SafetyFilter, got {chosen!r}")
+        if chosen == "none":
+            raise InvalidConfig("SafetyShield: filter='none' makes no shield; use the environment unwrapped")
+        if not isinstance(robot, RobotSpec) or control_dt is None:
+            raise UnsupportedEnv(f"SafetyShield: building filter {chosen!r} by name needs the robot (a RobotSpec) and "
+                                 f"control_dt [s] of {describe(env)}, which it does not expose; pass a SafetyFilter "
+                                 "instance instead")
+        return make_filter(chosen, _narrowed(robot, self._low, self._high), control_dt, **settings)
+
+    @property
+    def last_result(self) -> FilterResult | None:
+        """The filter result of the latest action (``None`` before the first)."""
+        return self._result
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        """Reset the environment and the filter's warm-start state."""
+        self.filter.reset()
+        self._result = None
+        return self.env.reset(seed=seed, options=options)
+
+    def action(self, action: Any) -> np.ndarray:
+        """The filtered command for the agent's ``action`` (``u_nom``), inside the action space.
+
+        Raises:
+            InvalidCommand: ``action`` is not a pair of numbers.
+            UnsupportedEnv: ``safety_observation()`` did not return a ``SafetyObservation``.
+        """
+        observation = self._source()
+        if not isinstance(observation, SafetyObservation):
+            raise UnsupportedEnv(f"SafetyShield: safety_observation() of {describe(self.env)} returned "
+                                 f"{type(observation).__name__}; expected a SafetyObservation")
+        self._result = self.filter.filter(action, observation.scan, velocity=observation.velocity,
+                                          now=observation.time)
+        return np.asarray(self._result.u, dtype=self.action_space.dtype)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        """Filter ``action``, step the environment with the result, and report what the filter did."""
+        observation, reward, terminated, truncated, info = self.env.step(self.action(action))
+        result = self._result
+        info = {**info, "shield": shield_info(result)}
+        if self.intervention_penalty > 0.0:
+            reward = float(reward) - self.intervention_penalty * self._safety_change(result)
+        return observation, reward, terminated, truncated, info
+
+    def _safety_change(self, result: FilterResult) -> float:
+        """``||u - clip(u_nom)||``: the change made for safety rather than for the action space's limits."""
+        if not np.all(np.isfinite(result.u_nom)):
+            return float(np.hypot(*(self._high - self._low)))
+        return float(np.hypot(*(result.u - np.clip(result.u_nom, self._low, self._high))))
