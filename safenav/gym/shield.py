@@ -18,14 +18,17 @@ What it adds to each step:
 
 * ``info["shield"]``: the step's :class:`~safenav.filters.FilterResult` as plain values
   (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``modified``,
-  ``intervention``, ``min_barrier`` and ``clearance`` (the filter's estimate from the scan
-  [m]); the result itself, with the solver and its timing, is :attr:`SafetyShield.last_result`
-  (timings are left out of ``info`` so that the same seed gives the same infos);
+  ``intervention`` (``||u - u_nom||``), ``min_barrier`` and ``clearance`` (the filter's estimate
+  from the scan [m]), and ``safety_change``: ``||u - reachable(u_nom)||``, where
+  ``reachable(u_nom)`` is the agent's action clipped to what the base can reach within one
+  period (its velocity limits, and its acceleration limits from the measured velocity), so
+  only the change made for safety counts, not what the base would have done anyway. The
+  result itself, with the solver and its timing, is :attr:`SafetyShield.last_result` (timings
+  are left out of ``info`` so that the same seed gives the same infos);
 * an optional **intervention penalty** (off by default): with ``intervention_penalty=w`` the
-  reward is lowered by ``w * ||u - clip(u_nom)||``, where ``clip(u_nom)`` is the agent's
-  action clipped into the action space (the change the filter made for safety, in
-  ``(m/s, rad/s)``; a non-finite action counts as the diagonal of the box). It teaches the
-  agent to need the shield less; it does not change what the shield lets through.
+  reward is lowered by ``w * safety_change`` [(m/s, rad/s)]; a non-finite action counts as
+  the diagonal of the velocity limits. It teaches the agent to need the shield less; it does
+  not change what the shield lets through.
 
 ``reset()`` also resets the filter's warm-start state.
 """
@@ -52,8 +55,13 @@ ESCAPE_MODULE = "safenav.filters.escape"
 """Where the liveness escape wrapper that ``escape=True`` will use is to live."""
 
 
-def shield_info(result: FilterResult) -> dict[str, Any]:
-    """The filter result of one step as plain values for ``info["shield"]`` (fresh arrays every call)."""
+def shield_info(result: FilterResult, safety_change: float) -> dict[str, Any]:
+    """The filter result of one step as plain values for ``info["shield"]`` (fresh arrays every call).
+
+    Args:
+        result: the filter's result.
+        safety_change: ``||u - reachable(u_nom)||`` (module docstring).
+    """
     return {
         "u_nom": np.array(result.u_nom, dtype=float),
         "u": np.array(result.u, dtype=float),
@@ -63,6 +71,7 @@ def shield_info(result: FilterResult) -> dict[str, Any]:
         "intervention": result.intervention,
         "min_barrier": float(result.min_barrier),
         "clearance": float(result.clearance),
+        "safety_change": safety_change,
     }
 
 
@@ -133,6 +142,7 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
                                      "which this safenav does not have yet; use escape=False")
         self.filter = self._make_filter(env, filter, filter_settings)
         self._result: FilterResult | None = None
+        self._velocity: np.ndarray | None = None
 
     def _make_filter(self, env: Any, chosen: str | SafetyFilter, settings: dict[str, Any]) -> SafetyFilter:
         control_dt = _wrapper_attr(env, "control_dt")
@@ -183,6 +193,7 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
         if not isinstance(observation, SafetyObservation):
             raise UnsupportedEnv(f"SafetyShield: safety_observation() of {describe(self.env)} returned "
                                  f"{type(observation).__name__}; expected a SafetyObservation")
+        self._velocity = observation.velocity
         self._result = self.filter.filter(action, observation.scan, velocity=observation.velocity,
                                           now=observation.time)
         return np.asarray(self._result.u, dtype=self.action_space.dtype)
@@ -190,14 +201,17 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
         """Filter ``action``, step the environment with the result, and report what the filter did."""
         observation, reward, terminated, truncated, info = self.env.step(self.action(action))
-        result = self._result
-        info = {**info, "shield": shield_info(result)}
+        change = self._safety_change(self._result, self._velocity)
+        info = {**info, "shield": shield_info(self._result, change)}
         if self.intervention_penalty > 0.0:
-            reward = float(reward) - self.intervention_penalty * self._safety_change(result)
+            reward = float(reward) - self.intervention_penalty * change
         return observation, reward, terminated, truncated, info
 
-    def _safety_change(self, result: FilterResult) -> float:
-        """``||u - clip(u_nom)||``: the change made for safety rather than for the action space's limits."""
+    def _safety_change(self, result: FilterResult, velocity: np.ndarray | None) -> float:
+        """``||u - reachable(u_nom)||``: the change made for safety, not by the base's own limits."""
+        robot = self.filter.robot
         if not np.all(np.isfinite(result.u_nom)):
-            return float(np.hypot(*(self._high - self._low)))
-        return float(np.hypot(*(result.u - np.clip(result.u_nom, self._low, self._high))))
+            return float(np.hypot(*(robot.upper - robot.lower)))
+        known = velocity is not None and bool(np.all(np.isfinite(velocity)))
+        reachable = robot.clip(result.u_nom, velocity, self.filter.dt) if known else robot.clip(result.u_nom)
+        return float(np.hypot(*(result.u - reachable)))

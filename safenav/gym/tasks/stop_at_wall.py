@@ -38,7 +38,7 @@ class StopAtWall(Task):
     The world is :func:`~safenav.worlds.tutorial_world` ``("stop_at_wall")`` with the start
     drawn from the world stream: the body's clearance to the wall uniform in ``start_clearance``
     [m], before or beyond the stopping distance (the tutorial starts 3 m from the wall), moved
-    sideways by up to 0.5 m and turned by up to 0.3 rad, so an agent has to read the wall's
+    sideways by up to 0.5 m and turned by up to 1.2 rad, so an agent has to read the wall's
     distance from the lidar. Progress is the decrease
     of ``|clearance - stop_clearance|`` [m], the body's distance to the wall against the target;
     the task succeeds within ``tolerance`` of the target with the robot stopped. The default
@@ -62,7 +62,7 @@ class StopAtWall(Task):
     tolerance: float = 0.1
     stop_speed: float = 0.05
     stop_turn: float = 0.1
-    start_clearance: tuple[float, float] = (0.1, 2.5)
+    start_clearance: tuple[float, float] = (0.1, 1.5)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -81,7 +81,7 @@ class StopAtWall(Task):
         sideways = rng.uniform(-0.5, 0.5)
         moved = Pose2D(start.x + closer * math.cos(start.yaw) - sideways * math.sin(start.yaw),
                        start.y + closer * math.sin(start.yaw) + sideways * math.cos(start.yaw),
-                       start.yaw + rng.uniform(-0.3, 0.3))
+                       start.yaw + rng.uniform(-1.2, 1.2))
         return tutorial.replace(start=moved)
 
     def tracker(self, world: World, robot: RobotSpec, state: SimState) -> Tracker:
