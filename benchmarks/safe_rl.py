@@ -58,7 +58,8 @@ class TrainingLog:
     end_steps: list[int] = field(default_factory=list)
     collided: list[bool] = field(default_factory=list)
     succeeded: list[bool] = field(default_factory=list)
-    modified_steps: int = 0
+    intervened_steps: int = 0
+    safety_change: float = 0.0
     steps: int = 0
 
 
@@ -83,7 +84,9 @@ def _callback(log: TrainingLog) -> Any:
         def _on_step(self) -> bool:
             for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
                 log.steps += 1
-                log.modified_steps += bool(info.get("shield", {}).get("modified", False))
+                change = info["shield"]["safety_change"] if "shield" in info else 0.0
+                log.intervened_steps += change > 1e-6
+                log.safety_change += change
                 if done:
                     log.end_steps.append(self.num_timesteps)
                     log.collided.append(bool(info["collision"]))
@@ -144,7 +147,11 @@ def _binned(log: TrainingLog, steps: int) -> dict[str, list[float]]:
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    runs = []
+    """Train and evaluate every seed and condition; the report (and plot) are saved after every run."""
+    report = {"env": ENV_ID, "robot": args.robot, "steps_per_run": args.steps, "seeds": list(args.seeds),
+              "n_envs": args.n_envs, "eval_episodes": args.eval_episodes, "algorithm": "stable-baselines3 PPO",
+              "runs": []}
+    runs = report["runs"]
     for seed in args.seeds:
         for shielded in (False, True):
             name = "shielded" if shielded else "unshielded"
@@ -156,7 +163,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 "condition": name, "seed": seed, "steps": log.steps, "wall_time_s": wall,
                 "training_episodes": len(log.end_steps), "training_collisions": int(sum(log.collided)),
                 "training_successes": int(sum(log.succeeded)),
-                "shield_modified_fraction": log.modified_steps / max(log.steps, 1),
+                "shield_intervened_fraction": log.intervened_steps / max(log.steps, 1),
+                "shield_mean_safety_change": log.safety_change / max(log.steps, 1),
                 "episode_end_steps": log.end_steps, "episode_collided": log.collided,
                 "episode_succeeded": log.succeeded, "binned": _binned(log, args.steps), **evaluation,
             })
@@ -164,9 +172,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             print(f"  {last['training_collisions']} collisions in {last['training_episodes']} episodes, "
                   f"{wall:.0f} s; eval success {last['eval_unshielded']['success_rate']:.2f} unshielded / "
                   f"{last['eval_shielded']['success_rate']:.2f} shielded", flush=True)
-    return {"env": ENV_ID, "robot": args.robot, "steps_per_run": args.steps, "seeds": list(args.seeds),
-            "n_envs": args.n_envs, "eval_episodes": args.eval_episodes, "algorithm": "stable-baselines3 PPO",
-            "runs": runs}
+            write_json(args.json, report)
+            plot(report, args.plot)
+    return report
 
 
 def print_table(report: dict[str, Any]) -> None:
@@ -190,6 +198,8 @@ def print_table(report: dict[str, Any]) -> None:
             sum(run["eval_unshielded"]["collisions"] for run in runs),
             f"{evaluation('eval_shielded', 'success_rate'):.2f}", f"{evaluation('eval_shielded', 'mean_return'):.2f}",
             sum(run["eval_shielded"]["collisions"] for run in runs),
+            f"{100 * np.mean([run['shield_intervened_fraction'] for run in runs]):.1f}" if condition == "shielded"
+            else "–",
             f"{np.mean([run['wall_time_s'] for run in runs]):.0f}",
         ])
     episodes = report["eval_episodes"] * len(report["seeds"])
@@ -198,7 +208,8 @@ def print_table(report: dict[str, Any]) -> None:
     print(markdown_table(
         ["", "training collisions", "per 10k steps", "training goals / episodes",
          "eval success (no shield)", "eval return (no shield)", "eval collisions (no shield)",
-         "eval success (shield)", "eval return (shield)", "eval collisions (shield)", "wall time per run [s]"],
+         "eval success (shield)", "eval return (shield)", "eval collisions (shield)",
+         "training steps the shield changed [%]", "wall time per run [s]"],
         rows))
 
 
@@ -254,8 +265,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "safe_rl") -> int:
         args.steps, args.seeds, args.eval_episodes = 4096, args.seeds[:1], 3
     report = run(args)
     print_table(report)
-    plot(report, args.plot)
-    write_json(args.json, report)
     return 0
 
 

@@ -5,13 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
-from safenav._checks import integer, pair, positive
-from safenav.gym.tasks.base import Task, Tracker, draw_seed
+from safenav._checks import positive
+from safenav.gym.tasks.arena import RandomArena
+from safenav.gym.tasks.base import Tracker
 from safenav.robot import RobotSpec
 from safenav.sim_bullet import SimState
-from safenav.worlds import World, random_world
+from safenav.worlds import World
 
 __all__ = ["Explore"]
 
@@ -35,17 +34,15 @@ class _NewArea(Tracker):
 
 
 @dataclass(frozen=True)
-class Explore(Task):
+class Explore(RandomArena):
     """Explore a walled arena of random boxes and cylinders: the random-walk task.
 
     Every episode draws a new :func:`~safenav.worlds.random_world` (no goal) from the world
-    stream. Progress is the floor area newly covered [m^2]: the base entering a square cell of
-    ``cell`` side [m] it has not entered before in the episode. No goal: the episode ends on a
-    collision or on time.
+    stream (:class:`~safenav.gym.tasks.arena.RandomArena`). Progress is the floor area newly
+    covered [m^2]: the base entering a square cell of ``cell`` side [m] it has not entered
+    before in the episode. No goal: the episode ends on a collision or on time.
 
     Attributes:
-        n_obstacles: free-standing obstacles per arena.
-        size: free interior of the arena ``(w, h)`` [m].
         cell: side of the coverage grid's cells [m].
     """
 
@@ -59,12 +56,7 @@ class Explore(Task):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        object.__setattr__(self, "n_obstacles", integer("Explore.n_obstacles", self.n_obstacles, low=0))
-        object.__setattr__(self, "size", pair("Explore.size", self.size, low=0.0, low_open=True))
         object.__setattr__(self, "cell", positive("Explore.cell", self.cell))
-
-    def world(self, robot: RobotSpec, rng: np.random.Generator) -> World:
-        return random_world(draw_seed(rng), robot, n_obstacles=self.n_obstacles, size=self.size)
 
     def tracker(self, world: World, robot: RobotSpec, state: SimState) -> Tracker:
         return _NewArea(self.cell, state)

@@ -5,14 +5,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
-from safenav._checks import integer, pair, positive
+from safenav._checks import positive
 from safenav.errors import InvalidConfig
-from safenav.gym.tasks.base import Task, Tracker, draw_seed
+from safenav.gym.tasks.arena import RandomArena
+from safenav.gym.tasks.base import Tracker
 from safenav.robot import RobotSpec
 from safenav.sim_bullet import SimState
-from safenav.worlds import World, random_world
+from safenav.worlds import World
 
 __all__ = ["GoToGoal"]
 
@@ -33,7 +32,7 @@ class _GoalDistance(Tracker):
 
 
 @dataclass(frozen=True)
-class GoToGoal(Task):
+class GoToGoal(RandomArena):
     """Drive to a goal through a walled arena of random boxes and cylinders.
 
     Every episode draws a new :func:`~safenav.worlds.random_world` (``goal=True``: the goal is at
@@ -42,8 +41,8 @@ class GoToGoal(Task):
     task succeeds (and the episode ends) within ``goal_tolerance`` of the goal.
 
     Attributes:
-        n_obstacles: free-standing obstacles per arena.
-        size: free interior of the arena ``(w, h)`` [m].
+        n_obstacles: free-standing obstacles per arena (fewer than :class:`Explore`'s).
+        size: free interior of the arena ``(w, h)`` [m] (smaller than :class:`Explore`'s).
         goal_tolerance: distance from the base to the goal that counts as arrived [m].
     """
 
@@ -58,12 +57,7 @@ class GoToGoal(Task):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        object.__setattr__(self, "n_obstacles", integer("GoToGoal.n_obstacles", self.n_obstacles, low=0))
-        object.__setattr__(self, "size", pair("GoToGoal.size", self.size, low=0.0, low_open=True))
         object.__setattr__(self, "goal_tolerance", positive("GoToGoal.goal_tolerance", self.goal_tolerance))
-
-    def world(self, robot: RobotSpec, rng: np.random.Generator) -> World:
-        return random_world(draw_seed(rng), robot, n_obstacles=self.n_obstacles, size=self.size, goal=True)
 
     def tracker(self, world: World, robot: RobotSpec, state: SimState) -> Tracker:
         if world.goal is None:
