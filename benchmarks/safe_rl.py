@@ -20,6 +20,7 @@ Run (the numbers in BENCHMARKS.md; about 30 minutes of one core)::
 
     nice python -m benchmarks.safe_rl --steps 200000 --seeds 0 1 --json safe_rl.json
     python benchmarks/safe_rl.py --quick          # a 4k-step smoke run
+    python benchmarks/safe_rl.py --env-picture docs/images/safe_rl_env.png   # the picture of the environment
 """
 
 from __future__ import annotations
@@ -242,6 +243,38 @@ def plot(report: dict[str, Any], path: str) -> None:
     print(f"wrote {path}")
 
 
+def draw_env_picture(path: str, seed: int = 0, hold: int = 40) -> None:
+    """GoToGoal drawn after the same random agent ran once unshielded and once behind the CBF shield."""
+    gymnasium = require("gymnasium", extra="gym", purpose="the safe-RL benchmark")
+    import safenav.gym
+
+    figure = Figure(figsize=(12.0, 5.4), dpi=100)
+    FigureCanvasAgg(figure)
+    for ax, shielded in zip(figure.subplots(1, 2), (False, True), strict=True):
+        env = gymnasium.make(ENV_ID, render_mode="rgb_array")
+        env = safenav.gym.SafetyShield(env, "cbf") if shielded else env
+        _, info = env.reset(seed=seed)
+        closest = info["clearance"]
+        for step in range(round(env.unwrapped.task.duration / env.unwrapped.control_dt)):
+            if step % hold == 0:
+                action = env.action_space.sample()    # seeded by reset(seed=...)
+            _, _, terminated, truncated, info = env.step(action)
+            closest = min(closest, info["clearance"])
+            if terminated or truncated:
+                break
+        ax.imshow(env.render())
+        ax.set_axis_off()
+        ax.set_title(f'SafetyShield(env, "cbf"): {info["time"]:.0f} s, closest {closest:.2f} m, no collision'
+                     if shielded else f"no shield: collision after {info['time']:.1f} s" if info["collision"]
+                     else f"no shield: {info['time']:.0f} s, closest {closest:.2f} m", fontsize=11)
+        env.close()
+    figure.suptitle(f"{ENV_ID}, reset(seed={seed}), the same random agent (each action held {hold} steps)")
+    figure.tight_layout(rect=(0.0, 0.0, 1.0, 0.95))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path)
+    print(f"wrote {path}")
+
+
 def build_parser(prog: str = "safe_rl") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -254,6 +287,9 @@ def build_parser(prog: str = "safe_rl") -> argparse.ArgumentParser:
                         help="evaluation episodes per policy and shield setting (default: 20)")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 4096 steps, one seed, 3 evaluation episodes")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON to PATH")
+    parser.add_argument("--env-picture", metavar="PATH",
+                        help="only draw the environment with a random agent, unshielded and shielded, to PATH "
+                             "(docs/images/safe_rl_env.png), and train nothing")
     parser.add_argument("--plot", metavar="PATH", default="docs/images/safe_rl.png",
                         help="where to draw the learning curves (default: docs/images/safe_rl.png)")
     return parser
@@ -261,6 +297,9 @@ def build_parser(prog: str = "safe_rl") -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None, prog: str = "safe_rl") -> int:
     args = build_parser(prog).parse_args(argv)
+    if args.env_picture:
+        draw_env_picture(args.env_picture)
+        return 0
     if args.quick:
         args.steps, args.seeds, args.eval_episodes = 4096, args.seeds[:1], 3
     report = run(args)
