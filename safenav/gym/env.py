@@ -144,13 +144,13 @@ class SafeNavEnv(gymnasium.Env):
         return self.sim_config.control_dt
 
     def safety_observation(self) -> SafetyObservation:
-        """The latest scan, the measured velocity and the simulated time (the shield protocol).
+        """The latest scan, the measured velocity, the pose and the simulated time (the shield protocol).
 
         Raises:
             SimulatorError: before the first :meth:`reset`.
         """
         state = self._current()
-        return SafetyObservation(scan=state.scan, velocity=state.velocity, time=state.time)
+        return SafetyObservation(scan=state.scan, velocity=state.velocity, pose=state.pose, time=state.time)
 
     @property
     def world(self) -> World | None:

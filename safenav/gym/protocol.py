@@ -9,7 +9,7 @@ through one method::
         control_dt = 0.05               # how long each action is held [s] (needed for filter="cbf")
 
         def safety_observation(self) -> SafetyObservation:
-            return SafetyObservation(scan=self._scan, velocity=self._velocity, time=self._time)
+            return SafetyObservation(scan=self._scan, velocity=self._velocity, pose=self._odometry, time=self._time)
 
 The contract, for the shield to keep its guarantee (docs/safety.md):
 
@@ -20,6 +20,9 @@ The contract, for the shield to keep its guarantee (docs/safety.md):
   converts ROS messages).
 * ``velocity`` is the measured ``(v [m/s], omega [rad/s])``, or ``None`` when unknown (the
   filter then cannot account for the acceleration limits).
+* ``pose`` is the odometry pose ``(x [m], y [m], yaw [rad])`` in any fixed frame, or ``None``;
+  with it, the points the filter remembers (beside and behind a lidar that does not see all
+  round) are carried exactly, else by ``velocity``.
 * ``time`` is the current time [s] on the clock of ``scan.stamp``, or ``None``; with both, the
   filter brakes on a stale scan.
 * The action space is a ``Box`` of shape ``(2,)``: ``(v [m/s], omega [rad/s])`` held for
@@ -30,13 +33,15 @@ safenav's own environments (:class:`~safenav.gym.SafeNavEnv`) implement it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from safenav._checks import number
-from safenav.errors import InvalidScanType
+from safenav.errors import InvalidConfig, InvalidScanType
+from safenav.geometry import Pose2D
 from safenav.robot import as_command
 from safenav.scan import LaserScan
 
@@ -50,16 +55,18 @@ class SafetyObservation:
     Attributes:
         scan: the latest scan, in the robot's current base frame.
         velocity: measured ``(v [m/s], omega [rad/s])`` (read-only), or ``None`` when unknown.
+        pose: odometry pose ``(x [m], y [m], yaw [rad])`` in any fixed frame, or ``None``.
         time: current time [s] on the clock of ``scan.stamp``, or ``None``.
 
     Raises:
         InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
         InvalidCommand: ``velocity`` is not a pair of numbers.
-        InvalidConfig: ``time`` is not a finite number.
+        InvalidConfig: ``pose`` is not three finite numbers, or ``time`` not a finite number.
     """
 
     scan: LaserScan
     velocity: np.ndarray | None = None
+    pose: Pose2D | None = None
     time: float | None = None
 
     def __post_init__(self) -> None:
@@ -70,6 +77,8 @@ class SafetyObservation:
             velocity = as_command(self.velocity, "SafetyObservation.velocity")
             velocity.flags.writeable = False
             object.__setattr__(self, "velocity", velocity)
+        if self.pose is not None:
+            object.__setattr__(self, "pose", Pose2D(*pose_triple("SafetyObservation.pose", self.pose)))
         if self.time is not None:
             object.__setattr__(self, "time", number("SafetyObservation.time", self.time))
 
@@ -86,6 +95,13 @@ class SafetyObservable(Protocol):
     def safety_observation(self) -> SafetyObservation:
         """The scan, measured velocity and time in which the next action will be executed."""
         ...
+
+
+def pose_triple(name: str, value: Any) -> tuple[float, float, float]:
+    """``value`` as ``(x, y, yaw)`` finite floats, or :class:`~safenav.errors.InvalidConfig` naming ``name``."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 3:
+        raise InvalidConfig(f"{name} must be a pose (x [m], y [m], yaw [rad]), got {value!r}")
+    return tuple(number(f"{name}[{index}]", item) for index, item in enumerate(value))
 
 
 def describe(env: Any) -> str:

@@ -17,7 +17,8 @@ inside the wrapped environment's action space.
 What it adds to each step:
 
 * ``info["shield"]``: the step's :class:`~safenav.filters.FilterResult` as plain values
-  (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``modified``,
+  (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``reason`` (what bound the
+  command, empty when nothing did), ``warnings``, ``modified``,
   ``intervention`` (``||u - u_nom||``), ``min_barrier`` and ``clearance`` (the filter's estimate
   from the scan [m]), and ``safety_change``: ``||u - reachable(u_nom)||``, where
   ``reachable(u_nom)`` is the agent's action clipped to what the base can reach within one
@@ -67,6 +68,8 @@ def shield_info(result: FilterResult, safety_change: float) -> dict[str, Any]:
         "u": np.array(result.u, dtype=float),
         "status": result.status.value,
         "message": result.message,
+        "reason": "" if result.reason is None else str(result.reason),
+        "warnings": tuple(result.warnings),
         "modified": result.modified,
         "intervention": result.intervention,
         "min_barrier": float(result.min_barrier),
@@ -195,7 +198,7 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
                                  f"{type(observation).__name__}; expected a SafetyObservation")
         self._velocity = observation.velocity
         self._result = self.filter.filter(action, observation.scan, velocity=observation.velocity,
-                                          now=observation.time)
+                                          pose=observation.pose, now=observation.time)
         return np.asarray(self._result.u, dtype=self.action_space.dtype)
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:

@@ -139,6 +139,7 @@ def test_info_holds_truth_and_the_scan() -> None:
     assert set(info) == {"time", "pose", "velocity", "clearance", "collision", "progress", "scan"}
     assert info["time"] == pytest.approx(0.05) and info["clearance"] > 0.0 and not info["collision"]
     np.testing.assert_array_equal(info["velocity"], observed.velocity)
+    np.testing.assert_array_equal(info["pose"], observed.pose)
 
 
 def test_the_observation_matches_its_space_for_every_robot() -> None:

@@ -67,8 +67,9 @@ def test_info_reports_the_filter_and_leaves_safe_actions_alone() -> None:
     assert shield["status"] == "ok" and not shield["modified"] and shield["intervention"] == 0.0
     np.testing.assert_array_equal(shield["u"], shield["u_nom"])
     assert env.last_result.status.value == "ok" and env.last_result.filter_time > 0.0
-    assert set(shield) == {"u_nom", "u", "status", "message", "modified", "intervention", "min_barrier", "clearance",
-                           "safety_change"}
+    assert set(shield) == {"u_nom", "u", "status", "message", "reason", "warnings", "modified", "intervention",
+                           "min_barrier", "clearance", "safety_change"}
+    assert shield["reason"] == ""
     assert shield["safety_change"] == 0.0
     env.close()
 
@@ -76,16 +77,18 @@ def test_info_reports_the_filter_and_leaves_safe_actions_alone() -> None:
 def test_the_shield_brakes_in_front_of_the_wall() -> None:
     env = SafetyShield(gymnasium.make("safenav/StopAtWall-v0"))
     env.reset(seed=0)
-    modified = False
+    modified, reasons = False, set()
     for _ in range(300):
         _, _, terminated, truncated, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
         modified |= info["shield"]["modified"]
+        reasons.add(info["shield"]["reason"].partition(":")[0])
         assert not info["collision"]
         assert info["shield"]["u"][0] <= 1.0
         if terminated or truncated:
             break
     env.close()
     assert modified and info["clearance"] > 0.0
+    assert reasons & {"barrier", "braking"}          # the wall bound the command, and the info says so
 
 
 def test_intervention_penalty_is_the_change_made_for_safety() -> None:
@@ -253,3 +256,17 @@ def test_the_readme_example_runs_as_written() -> None:
     assert namespace["info"]["shield"]["status"] == "ok"
     assert math.isfinite(namespace["reward"])
     namespace["env"].close()
+
+
+@pytest.mark.parametrize(("kwargs", "error", "message"), [
+    ({"scan": [1.0, 2.0]}, TypeError, "SafetyObservation.scan must be a safenav LaserScan"),
+    ({"velocity": (1.0, 2.0, 3.0)}, ValueError, "SafetyObservation.velocity must have shape .2,."),
+    ({"pose": (0.0, 1.0)}, ValueError, r"SafetyObservation.pose must be a pose \(x \[m\], y \[m\], yaw \[rad\]\)"),
+    ({"pose": (0.0, 1.0, math.nan)}, ValueError, r"SafetyObservation.pose\[2\] must be a finite number, got nan"),
+    ({"time": math.inf}, ValueError, "SafetyObservation.time must be a finite number, got inf"),
+])
+def test_safety_observation_errors_name_the_field(kwargs: dict, error: type, message: str) -> None:
+    fields = {"scan": preset("puzzlebot").scan(), **kwargs}
+    with pytest.raises(error, match=message) as caught:
+        SafetyObservation(**fields)
+    assert isinstance(caught.value, SafeNavError)
