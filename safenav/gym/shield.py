@@ -1,8 +1,8 @@
 """A safety shield for any agent: a Gymnasium ``ActionWrapper`` that filters every action.
 
 The agent's action is the nominal command ``u_nom = (v, omega)``; the shield passes it, with
-the environment's latest scan and measured velocity, through a safenav safety filter and sends
-the filtered command to the environment::
+the environment's latest scan, measured velocity, odometry pose and time, through a safenav
+safety filter and sends the filtered command to the environment::
 
     env = SafetyShield(gymnasium.make("safenav/GoToGoal-v0"))          # the CBF-QP filter
     env = SafetyShield(env, "mpc", horizon=30)                           # by name, with settings
@@ -31,7 +31,7 @@ What it adds to each step:
   the diagonal of the velocity limits. It teaches the agent to need the shield less; it does
   not change what the shield lets through.
 
-``reset()`` also resets the filter's warm-start state.
+``reset()`` also resets the filter (its memory of points, its clock and its warm starts).
 """
 
 from __future__ import annotations
@@ -180,7 +180,7 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
         return self._result
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        """Reset the environment and the filter's warm-start state."""
+        """Reset the environment and the filter (memory, clock, warm starts)."""
         self.filter.reset()
         self._result = None
         return self.env.reset(seed=seed, options=options)
