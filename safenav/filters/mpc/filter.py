@@ -95,8 +95,10 @@ class MPCSafetyFilter(SafetyFilter):
     point in reach; points the plan violates are swapped into the slots and the NLP is solved
     again (up to ``max_rounds`` solves).
 
-    **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans the
-    first command held for ``m`` periods (its first ``m`` commands equal) and reports ``LATE``.
+    **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
+    command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
+    acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the block's
+    length) and reports ``LATE``.
 
     **Guarantee.** If the world is static, every obstacle wider than the beam gap at 1 m is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF
@@ -154,11 +156,11 @@ class MPCSafetyFilter(SafetyFilter):
         self.horizon = cfg.horizon if cfg.horizon is not None else max(DEFAULT_HORIZON, stop_steps + 1)
         chord = self.speed * dt
         self.arc_error = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
-        spread = max(self.model.beta, 1.0 - self.model.beta) * self.model.tracking
-        self.actuator_error = spread * dt * dt * (robot.a_max + chord * robot.alpha_max)
-        blind = lidar.range_min + math.hypot(lidar.mount.x, lidar.mount.y)
-        self.inflated_radius = max(math.hypot(robot.radius + self.margin + self.arc_error + self.actuator_error,
-                                              0.5 * chord), blind)
+        self._spread = max(self.model.beta, 1.0 - self.model.beta) * self.model.tracking
+        self.actuator_error = self._actuator_error(1)
+        self._blind = lidar.range_min + math.hypot(lidar.mount.x, lidar.mount.y)
+        self.inflated_radius = self._inflated_radius(1)
+        self._buffer_setting = cfg.buffer
         self.buffer = cfg.buffer if cfg.buffer is not None else self.actuator_error + 2.0 * lidar.noise_std
         self.weights = (float(cfg.weights[0]), float(cfg.weights[1]))
         self.n_points = cfg.n_points
@@ -169,6 +171,24 @@ class MPCSafetyFilter(SafetyFilter):
         self._lbg = np.concatenate((-np.tile(self._step, self.horizon - 1), np.zeros(self.n_points * knots)))
         self._ubg = np.concatenate((np.tile(self._step, self.horizon - 1), np.full(self.n_points * knots, np.inf)))
         self._commands: np.ndarray | None = None
+
+    def _actuator_error(self, hold: int) -> float:
+        """Farthest the true position strays from the model's over a block of ``hold`` periods in which one
+        command is held (the velocity between the block's start velocity and the command) [m]."""
+        robot, held = self.robot, hold * self.dt
+        return self._spread * held * held * (robot.a_max + self.speed * self.dt * robot.alpha_max)
+
+    def _inflated_radius(self, hold: int) -> float:
+        """``r_eff`` when commands are held ``hold`` periods (see the class docstring) [m]."""
+        chord = self.speed * self.dt
+        radius = self.robot.radius + self.margin + self.arc_error + self._actuator_error(hold)
+        return max(math.hypot(radius, 0.5 * chord), self._blind)
+
+    def _step_bounds(self, hold: int) -> np.ndarray:
+        """``(N - 1, 2)`` largest change between consecutive commands: within a block of ``hold`` equal
+        commands none, between blocks what the acceleration limits allow in ``hold`` periods."""
+        k = np.arange(1, self.horizon)
+        return np.where((k % hold == 0)[:, None], hold * self._step, 0.0)
 
     def __repr__(self) -> str:
         return (f"MPCSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, horizon={self.horizon}, "
@@ -200,17 +220,22 @@ class MPCSafetyFilter(SafetyFilter):
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
 
-    def _bounds(self, velocity: np.ndarray, frontier: Frontier) -> tuple[np.ndarray, np.ndarray]:
-        """Per-step command bounds ``(N, 2)``: limits, reachability, unknown space, stopped at the end."""
+    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Per-step command bounds ``(N, 2)``: limits, reachability, unknown space, stopped at the end.
+
+        Commands come in blocks of ``hold`` equal ones (one call period); each block may differ from the
+        previous one by what the acceleration limits allow in ``hold`` periods.
+        """
         robot = self.robot
         # A lagging base is commanded a sequence that slews at the acceleration limits; its velocity follows.
         origin = velocity if self.model.time_constant <= 0.0 else self._last_command
-        change = np.arange(1, self.horizon + 1)[:, None] * self._step
+        blocks = np.arange(self.horizon) // hold + 1
+        change = blocks[:, None] * hold * self._step
         reach_low, reach_high = origin - change, origin + change
         # Later steps: the limits, widened only to let a base outside them brake at its limit.
         lower = np.minimum(robot.lower, reach_high)
         upper = np.maximum(robot.upper, reach_low)
-        lower[0], upper[0] = robot.velocity_bounds(origin, self.dt)
+        lower[0], upper[0] = robot.velocity_bounds(origin, self.dt * hold)
         if frontier.blocks_forward:
             upper[:, 0] = np.minimum(upper[:, 0], np.maximum(0.0, reach_low[:, 0]))
         if frontier.blocks_backward:
@@ -242,12 +267,15 @@ class MPCSafetyFilter(SafetyFilter):
         else:
             min_barrier = math.inf
         clearance = self.body.clearance(points)
-        planned = self.inflated_radius + self.buffer + uncertainty
+        inflated = self._inflated_radius(hold)
+        buffer = self.buffer if self._buffer_setting is not None or hold == 1 else \
+            self._actuator_error(hold) + 2.0 * robot.lidar.noise_std
+        planned = inflated + buffer + uncertainty
         keep = distance <= self._reach(velocity) + planned
         points, distance, uncertainty, planned = points[keep], distance[keep], uncertainty[keep], planned[keep]
-        lower, upper = self._bounds(velocity, view.frontier)
+        lower, upper = self._bounds(velocity, view.frontier, hold)
         return MPCProblem(u_nom, velocity.copy(), points, np.minimum(planned, distance),
-                          np.minimum(self.inflated_radius + uncertainty, distance), lower, upper, hold,
+                          np.minimum(inflated + uncertainty, distance), lower, upper, hold,
                           view.frontier, min_barrier, clearance)
 
     # ------------------------------------------------------------------ plans
@@ -268,9 +296,7 @@ class MPCSafetyFilter(SafetyFilter):
         commands = np.asarray(commands, dtype=float).reshape(self.horizon, 2)
         limits = max(float(np.max(problem.lower - commands)), float(np.max(commands - problem.upper)))
         if self.horizon > 1:
-            limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - self._step)))
-        if problem.hold > 1:
-            limits = max(limits, float(np.max(np.abs(commands[: problem.hold] - commands[0]))))
+            limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - self._step_bounds(problem.hold))))
         poses, velocities = self.model.rollout(commands, problem.velocity)
         gaps = distances(self._knots(poses, velocities), problem.points)
         if gaps.size == 0:
@@ -279,8 +305,8 @@ class MPCSafetyFilter(SafetyFilter):
                          gaps, poses, velocities)
 
     def _braking(self, first: np.ndarray, hold: int = 1) -> np.ndarray:
-        """``first`` for ``hold`` steps, then every command nearer zero by the acceleration limit: ``(N, 2)``."""
-        steps = np.maximum(np.arange(self.horizon) - (hold - 1), 0)[:, None] * self._step
+        """``first``, then every block of ``hold`` commands nearer zero by the acceleration limit: ``(N, 2)``."""
+        steps = (np.arange(self.horizon) // hold)[:, None] * hold * self._step
         return np.sign(first) * np.maximum(np.abs(first) - steps, 0.0)
 
     @staticmethod
@@ -395,10 +421,10 @@ class MPCSafetyFilter(SafetyFilter):
         lbx = np.append(problem.lower.ravel(), 0.0)
         ubx = np.append(problem.upper.ravel(), np.inf)
         lbg, ubg = self._lbg, self._ubg
-        if problem.hold > 1:   # the first `hold` commands are one command held for the measured period
+        if problem.hold > 1:   # blocks of `hold` equal commands, one per call period
+            steps = self._step_bounds(problem.hold).ravel()
             lbg, ubg = lbg.copy(), ubg.copy()
-            lbg[: 2 * (problem.hold - 1)] = 0.0
-            ubg[: 2 * (problem.hold - 1)] = 0.0
+            lbg[: steps.size], ubg[: steps.size] = -steps, steps
         head = np.concatenate((problem.velocity, problem.u_nom))
         commands = warm
         solve_time = 0.0
@@ -455,11 +481,9 @@ class MPCSafetyFilter(SafetyFilter):
         """``commands`` moved into their bounds, acceleration rows and hold (an SQP stopped at its
         iteration limit can miss a linear row by ~1e-6); the result is verified like any answer."""
         repaired = np.clip(commands, problem.lower, problem.upper)
+        steps = self._step_bounds(problem.hold)
         for k in range(1, self.horizon):
-            if k < problem.hold:
-                repaired[k] = repaired[0]
-                continue
-            repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - self._step, repaired[k - 1] + self._step),
+            repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - steps[k - 1], repaired[k - 1] + steps[k - 1]),
                                   problem.lower[k], problem.upper[k])
         return repaired
 
