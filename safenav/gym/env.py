@@ -75,7 +75,7 @@ def scan_fields(scan: LaserScan) -> dict[str, Any]:
     fields = {field.name: getattr(scan, field.name) for field in dataclasses.fields(scan)}
     fields["ranges"] = np.array(scan.ranges)
     fields["intensities"] = np.array(scan.intensities)
-    fields["mount"] = tuple(scan.mount)
+    fields["mount"] = None if scan.mount is None else tuple(scan.mount)
     return fields
 
 
