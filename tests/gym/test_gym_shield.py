@@ -20,7 +20,7 @@ gymnasium = pytest.importorskip("gymnasium", reason=SKIP_REASON)
 from safenav.gym import ENV_IDS, FeatureUnavailable, SafetyObservation, SafetyShield, UnsupportedEnv  # noqa: E402 - after the importorskip
 
 EPISODES = 20
-SHORT_STEPS = 150   # 7.5 s; `pytest -m slow` runs whole episodes
+SHORT_STEPS = 100   # 5 s; `pytest -m slow` runs whole episodes
 
 
 def _episodes(env_id: str, shielded: bool, steps: int, *, until_collision: bool = False, **make: Any) -> list:
