@@ -31,7 +31,7 @@ from safenav._optional import require
 require("gymnasium", extra="gym", purpose="safenav's Gymnasium environments")
 
 from safenav.gym.env import SafeNavEnv  # noqa: E402 - after the dependency check, which names the extra
-from safenav.gym.errors import FeatureUnavailable, UnsupportedEnv  # noqa: E402
+from safenav.gym.errors import UnsupportedEnv  # noqa: E402
 from safenav.gym.observation import ObservationConfig, encode_lidar  # noqa: E402
 from safenav.gym.protocol import SafetyObservable, SafetyObservation  # noqa: E402
 from safenav.gym.registration import ENV_IDS, register_envs  # noqa: E402
@@ -42,7 +42,6 @@ __all__ = [
     "ENV_IDS",
     "TASKS",
     "Explore",
-    "FeatureUnavailable",
     "GoToGoal",
     "ObservationConfig",
     "ObstacleAvoidance",

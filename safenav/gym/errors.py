@@ -4,12 +4,8 @@ from __future__ import annotations
 
 from safenav.errors import SafeNavError
 
-__all__ = ["FeatureUnavailable", "UnsupportedEnv"]
+__all__ = ["UnsupportedEnv"]
 
 
 class UnsupportedEnv(SafeNavError, TypeError):
     """An environment the shield cannot guard: it lacks the protocol, or its action space is not ``(v, omega)``."""
-
-
-class FeatureUnavailable(SafeNavError, NotImplementedError):
-    """A documented option whose implementation this version of safenav does not have yet; the message names it."""

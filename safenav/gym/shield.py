@@ -7,6 +7,7 @@ safety filter and sends the filtered command to the environment::
     env = SafetyShield(gymnasium.make("safenav/GoToGoal-v0"))          # the CBF-QP filter
     env = SafetyShield(env, "mpc", horizon=30)                           # by name, with settings
     env = SafetyShield(env, CBFSafetyFilter(robot, dt=0.05, margin=0.1)) # or a filter instance
+    env = SafetyShield(env, escape=True)                                 # with the deadlock escape
 
 It works on any environment that implements the protocol of :mod:`safenav.gym.protocol`
 (``safety_observation()``, plus ``robot`` and ``control_dt`` to build a filter by name) and
@@ -17,8 +18,9 @@ inside the wrapped environment's action space.
 What it adds to each step:
 
 * ``info["shield"]``: the step's :class:`~safenav.filters.FilterResult` as plain values
-  (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``reason`` (what bound the
-  command, empty when nothing did), ``warnings``, ``modified``,
+  (:func:`shield_info`): ``u_nom``, ``u``, ``status``, ``message``, ``escape`` (what the
+  escape does instead of the agent's action, empty when it does not), ``reason`` (what bound
+  the command, empty when nothing did), ``warnings``, ``modified``,
   ``intervention`` (``||u - u_nom||``), ``min_barrier`` and ``clearance`` (the filter's estimate
   from the scan [m]), and ``safety_change``: ``||u - reachable(u_nom)||``, where
   ``reachable(u_nom)`` is the agent's action clipped to what the base can reach within one
@@ -44,17 +46,14 @@ from safenav._checks import boolean, number
 from safenav._optional import require
 from safenav.errors import InvalidConfig
 from safenav.filters import FILTER_NAMES, FilterResult, SafetyFilter, make_filter
-from safenav.gym.errors import FeatureUnavailable, UnsupportedEnv
+from safenav.filters.escape import Escape
+from safenav.gym.errors import UnsupportedEnv
 from safenav.gym.protocol import SafetyObservation, describe
 from safenav.robot import RobotSpec
 
 gymnasium = require("gymnasium", extra="gym", purpose="safenav's Gymnasium shield")
 
 __all__ = ["SafetyShield", "shield_info"]
-
-ESCAPE_MODULE = "safenav.filters.escape"
-"""Where the liveness escape wrapper that ``escape=True`` will use is to live."""
-
 
 def shield_info(result: FilterResult, safety_change: float) -> dict[str, Any]:
     """The filter result of one step as plain values for ``info["shield"]`` (fresh arrays every call).
@@ -68,6 +67,7 @@ def shield_info(result: FilterResult, safety_change: float) -> dict[str, Any]:
         "u": np.array(result.u, dtype=float),
         "status": result.status.value,
         "message": result.message,
+        "escape": result.escape,
         "reason": "" if result.reason is None else str(result.reason),
         "warnings": tuple(result.warnings),
         "modified": result.modified,
@@ -106,11 +106,15 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
         env: the environment; it (or a wrapper in its stack) implements the shield protocol.
         filter: a filter name (``"cbf"``, ``"mpc"``, ``"zones"``), built for the environment's
             ``robot`` and ``control_dt`` with ``filter_settings``, or a
-            :class:`~safenav.filters.SafetyFilter` instance (its ``dt`` must equal the
+            :class:`~safenav.filters.SafetyFilter` (or :class:`~safenav.filters.escape.Escape`)
+            instance (its ``dt`` must equal the
             environment's ``control_dt`` when it has one; an environment re-made from
             ``env.spec`` shares the instance, a name gives each its own filter).
-        escape: add the liveness escape (a nominal that leaves a deadlock, itself filtered).
-            Not available yet: ``True`` raises :class:`~safenav.gym.errors.FeatureUnavailable`.
+        escape: wrap the filter in the liveness escape (:class:`~safenav.filters.escape.Escape`
+            with its default settings): when the filter holds the robot in a deadlock, an escape
+            command replaces the agent's action until its way is clear, and passes through the
+            same filter (safety unchanged, only progress). For other settings pass
+            ``Escape(filter, ...)`` as ``filter``.
         intervention_penalty: weight of the intervention penalty (module docstring), >= 0; 0 is off.
         **filter_settings: settings of a filter built by name (fields of its config).
 
@@ -119,10 +123,9 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
             shape ``(2,)`` holding ``(0, 0)``.
         UnknownName: an unknown filter name (the message lists them).
         InvalidConfig: a bad setting, a filter whose period or limits do not match the environment.
-        FeatureUnavailable: ``escape=True``.
     """
 
-    def __init__(self, env: Any, filter: str | SafetyFilter = "cbf", *, escape: bool = False,
+    def __init__(self, env: Any, filter: str | SafetyFilter | Escape = "cbf", *, escape: bool = False,
                  intervention_penalty: float = 0.0, **filter_settings: Any) -> None:
         gymnasium.utils.RecordConstructorArgs.__init__(self, filter=filter, escape=escape,
                                                         intervention_penalty=intervention_penalty, **filter_settings)
@@ -140,16 +143,17 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
             raise UnsupportedEnv(f"SafetyShield: the action space {space} of {describe(env)} does not hold the stop "
                                  "command (0, 0); a shield must be able to stop")
         self.intervention_penalty = number("SafetyShield.intervention_penalty", intervention_penalty, low=0.0)
-        if boolean("SafetyShield.escape", escape):
-            raise FeatureUnavailable(f"SafetyShield(escape=True) needs the liveness escape wrapper {ESCAPE_MODULE}, "
-                                     "which this safenav does not have yet; use escape=False")
-        self.filter = self._make_filter(env, filter, filter_settings)
+        with_escape = boolean("SafetyShield.escape", escape)
+        chosen = self._make_filter(env, filter, filter_settings)
+        wrap = with_escape and not isinstance(chosen, Escape)
+        self.filter: SafetyFilter | Escape = Escape(chosen) if wrap else chosen
         self._result: FilterResult | None = None
         self._velocity: np.ndarray | None = None
 
-    def _make_filter(self, env: Any, chosen: str | SafetyFilter, settings: dict[str, Any]) -> SafetyFilter:
+    def _make_filter(self, env: Any, chosen: str | SafetyFilter | Escape,
+                     settings: dict[str, Any]) -> SafetyFilter | Escape:
         control_dt = _wrapper_attr(env, "control_dt")
-        if isinstance(chosen, SafetyFilter):
+        if isinstance(chosen, (SafetyFilter, Escape)):
             if settings:
                 raise InvalidConfig(f"SafetyShield: settings {sorted(settings)} apply to a filter built by name; "
                                     "give them to the filter instance instead")
@@ -164,8 +168,8 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
             return chosen
         robot = _wrapper_attr(env, "robot")
         if not isinstance(chosen, str):
-            raise InvalidConfig(f"SafetyShield: filter must be a name ({', '.join(FILTER_NAMES[1:])}) or a "
-                                f"SafetyFilter, got {chosen!r}")
+            raise InvalidConfig(f"SafetyShield: filter must be a name ({', '.join(FILTER_NAMES[1:])}), a "
+                                f"SafetyFilter or an Escape, got {chosen!r}")
         if chosen == "none":
             raise InvalidConfig("SafetyShield: filter='none' makes no shield; use the environment unwrapped")
         if not isinstance(robot, RobotSpec) or control_dt is None:

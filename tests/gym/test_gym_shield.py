@@ -17,7 +17,7 @@ from tests.gym.conftest import SKIP_REASON, check_env_quietly, random_episode
 
 gymnasium = pytest.importorskip("gymnasium", reason=SKIP_REASON)
 
-from safenav.gym import ENV_IDS, FeatureUnavailable, SafetyObservation, SafetyShield, UnsupportedEnv  # noqa: E402 - after the importorskip
+from safenav.gym import ENV_IDS, SafetyObservation, SafetyShield, UnsupportedEnv  # noqa: E402 - after the importorskip
 
 EPISODES = 20
 SHORT_STEPS = 100   # 5 s; `pytest -m slow` runs whole episodes
@@ -67,8 +67,8 @@ def test_info_reports_the_filter_and_leaves_safe_actions_alone() -> None:
     assert shield["status"] == "ok" and not shield["modified"] and shield["intervention"] == 0.0
     np.testing.assert_array_equal(shield["u"], shield["u_nom"])
     assert env.last_result.status.value == "ok" and env.last_result.filter_time > 0.0
-    assert set(shield) == {"u_nom", "u", "status", "message", "reason", "warnings", "modified", "intervention",
-                           "min_barrier", "clearance", "safety_change"}
+    assert set(shield) == {"u_nom", "u", "status", "message", "escape", "reason", "warnings", "modified",
+                           "intervention", "min_barrier", "clearance", "safety_change"}
     assert shield["reason"] == ""
     assert shield["safety_change"] == 0.0
     env.close()
@@ -143,7 +143,9 @@ class SquareRoom(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        self._pose = Pose2D(float(self.np_random.uniform(-0.5, 0.5)), 0.0, float(self.np_random.uniform(-3, 3)))
+        start = (options or {}).get("start")
+        self._pose = Pose2D(*start) if start is not None else Pose2D(float(self.np_random.uniform(-0.5, 0.5)), 0.0,
+                                                                      float(self.np_random.uniform(-3, 3)))
         self._velocity, self._time = np.zeros(2), 0.0
         return self._observe(), {}
 
@@ -175,6 +177,26 @@ def test_the_shield_guards_a_third_party_environment() -> None:
     env.close()
 
 
+def test_the_escape_leaves_a_deadlock_the_plain_shield_sits_in() -> None:
+    # Head-on at a wall, the symmetric case: the barrier holds the robot still in front of it;
+    # the escape follows the wall instead, its commands filtered like the agent's.
+    finals, escaping = [], []
+    for escape in (False, True):
+        env = SafetyShield(SquareRoom(), escape=escape)
+        env.reset(seed=0, options={"start": (0.0, 0.0, 0.0)})
+        steps = []
+        for _ in range(300):
+            _, _, terminated, _, info = env.step(np.array([0.3, 0.0], dtype=np.float32))
+            steps.append(bool(info["shield"]["escape"]))
+            assert not terminated and info["clearance"] >= 0.0
+        finals.append(env.unwrapped._pose)
+        escaping.append(sum(steps))
+    assert type(env.filter).__name__ == "Escape" and isinstance(env.filter.inner, CBFSafetyFilter)
+    stuck, escaped = finals
+    assert escaping[0] == 0 and stuck.x > 0.9 and abs(stuck.y) < 0.01          # sat at the wall, facing it
+    assert escaping[1] > 0 and math.dist(stuck[:2], escaped[:2]) > 0.5          # went round instead
+
+
 def test_without_the_shield_the_third_party_robot_hits_the_wall() -> None:
     env = SquareRoom()
     env.reset(seed=0)
@@ -202,12 +224,11 @@ class WrongShape(SquareRoom):
      "has action space Discrete.3.; expected a Box of shape .2,."),
     (lambda: SafetyShield(WrongShape(gymnasium.spaces.Box(0.1, 1.0, (2,)))), UnsupportedEnv,
      "does not hold the stop command .0, 0."),
-    (lambda: SafetyShield(SquareRoom(), escape=True), FeatureUnavailable,
-     "needs the liveness escape wrapper safenav.filters.escape"),
     (lambda: SafetyShield(SquareRoom(), escape="yes"), InvalidConfig, "SafetyShield.escape must be True or False"),
     (lambda: SafetyShield(SquareRoom(), "none"), InvalidConfig, "filter='none' makes no shield"),
     (lambda: SafetyShield(SquareRoom(), "magic"), UnknownName, "unknown filter 'magic'; expected one of: cbf"),
-    (lambda: SafetyShield(SquareRoom(), 3), InvalidConfig, "filter must be a name .zones, cbf, mpc. or a SafetyFilter"),
+    (lambda: SafetyShield(SquareRoom(), 3), InvalidConfig,
+     "filter must be a name .zones, cbf, mpc., a SafetyFilter or an Escape, got 3"),
     (lambda: SafetyShield(SquareRoom(), intervention_penalty=-1.0), InvalidConfig,
      "SafetyShield.intervention_penalty must be a finite number >= 0, got -1.0"),
     (lambda: SafetyShield(SquareRoom(), CBFSafetyFilter(preset("puzzlebot").replace(v_min=0.0, v_max=0.3,
@@ -224,8 +245,8 @@ def test_shield_errors_name_what_is_wrong(call, error, message) -> None:
     assert isinstance(caught.value, SafeNavError)
 
 
-def test_unsupported_env_is_a_type_error_and_escape_a_not_implemented_error() -> None:
-    assert issubclass(UnsupportedEnv, TypeError) and issubclass(FeatureUnavailable, NotImplementedError)
+def test_unsupported_env_is_a_type_error() -> None:
+    assert issubclass(UnsupportedEnv, TypeError)
 
 
 def test_a_filter_instance_and_settings_by_name_are_used() -> None:
