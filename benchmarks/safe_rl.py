@@ -21,11 +21,13 @@ Run (the numbers in BENCHMARKS.md; about 30 minutes of one core)::
     nice python -m benchmarks.safe_rl --steps 200000 --seeds 0 1 --json safe_rl.json
     python benchmarks/safe_rl.py --quick          # a 4k-step smoke run
     python benchmarks/safe_rl.py --env-picture docs/images/safe_rl_env.png   # the picture of the environment
+    python benchmarks/safe_rl.py --from-json safe_rl.json                   # table and plot of a saved run
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -220,16 +222,19 @@ def plot(report: dict[str, Any], path: str) -> None:
     FigureCanvasAgg(figure)
     collisions_ax, success_ax = figure.subplots(1, 2)
     colors = {"unshielded": "#d62728", "shielded": "#2ca02c"}
+    styles = ["-", "--", ":", "-."]
     for run in report["runs"]:
         color = colors[run["condition"]]
+        style = styles[report["seeds"].index(run["seed"]) % len(styles)]
         label = f"{run['condition']}, seed {run['seed']}"
         ends = np.asarray(run["episode_end_steps"])
         collisions_ax.step(np.concatenate(([0], ends)), np.concatenate(([0], np.cumsum(run["episode_collided"]))),
-                           where="post", color=color, alpha=0.8, label=label)
+                           where="post", color=color, linestyle=style, alpha=0.8, label=label)
         binned = run["binned"]
         episodes = np.asarray(binned["episodes"], dtype=float)
         rate = np.divide(binned["successes"], episodes, out=np.full(episodes.shape, np.nan), where=episodes > 0)
-        success_ax.plot(binned["bin_end_steps"], rate, color=color, alpha=0.8, marker=".", label=label)
+        success_ax.plot(binned["bin_end_steps"], rate, color=color, linestyle=style, alpha=0.8, marker=".",
+                        label=label)
     collisions_ax.set(xlabel="training steps", ylabel="collisions (cumulative)", title="collisions while learning")
     success_ax.set(xlabel="training steps", ylabel="goal reached, training episodes", ylim=(-0.02, 1.02),
                    title=f"success per {BIN_STEPS // 1000}k steps")
@@ -287,6 +292,8 @@ def build_parser(prog: str = "safe_rl") -> argparse.ArgumentParser:
                         help="evaluation episodes per policy and shield setting (default: 20)")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 4096 steps, one seed, 3 evaluation episodes")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON to PATH")
+    parser.add_argument("--from-json", metavar="PATH",
+                        help="train nothing: print the table and draw the plot of a report written by --json")
     parser.add_argument("--env-picture", metavar="PATH",
                         help="only draw the environment with a random agent, unshielded and shielded, to PATH "
                              "(docs/images/safe_rl_env.png), and train nothing")
@@ -299,6 +306,11 @@ def main(argv: Sequence[str] | None = None, prog: str = "safe_rl") -> int:
     args = build_parser(prog).parse_args(argv)
     if args.env_picture:
         draw_env_picture(args.env_picture)
+        return 0
+    if args.from_json:
+        report = json.loads(Path(args.from_json).read_text())
+        print_table(report)
+        plot(report, args.plot)
         return 0
     if args.quick:
         args.steps, args.seeds, args.eval_episodes = 4096, args.seeds[:1], 3
