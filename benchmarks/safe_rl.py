@@ -16,7 +16,7 @@ and draws cumulative collisions and the training success rate against steps
 (``--plot``, by default ``docs/images/safe_rl.png``). Needs the ``rl`` extra
 (``pip install "safenav[rl]"``: gymnasium, stable-baselines3 and torch); not part of CI.
 
-Run (the numbers in BENCHMARKS.md; about 30 minutes of one core)::
+Run (the numbers in BENCHMARKS.md; four training runs of 850-1800 s each on the shared 2-core machine)::
 
     nice python -m benchmarks.safe_rl --steps 200000 --seeds 0 1 --json safe_rl.json
     python benchmarks/safe_rl.py --quick          # a 4k-step smoke run
