@@ -474,6 +474,22 @@ def _pick(unit: float, options: Sequence[str]) -> str:
     return options[min(int(unit * len(options)), len(options) - 1)]
 
 
+WALL_THICKNESS = 0.05
+"""Walls are boxes this thick [m]: a wall of no thickness seen edge-on is narrower than any beam gap, which
+the guarantee does not cover (A2, docs/safety.md); real walls are not."""
+
+
+def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
+           ) -> list[tuple[float, float, float, float]]:
+    """The four sides of a wall from ``start`` to ``end`` [m], ``WALL_THICKNESS`` thick away from the origin."""
+    start_point, end_point = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    offset = WALL_THICKNESS * np.array([math.cos(normal), math.sin(normal)])
+    if np.dot(offset, 0.5 * (start_point + end_point)) < 0.0:
+        offset = -offset     # thicken away from the robot, so the face it sees stays where it was drawn
+    corners = [start_point, end_point, end_point + offset, start_point + offset]
+    return [(*corners[i], *corners[(i + 1) % 4]) for i in range(4)]
+
+
 def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
            settings: dict[str, Any] | None = None) -> Episode:
@@ -511,7 +527,7 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         tangent = normal + 0.5 * math.pi
         cx, cy = distance * math.cos(normal), distance * math.sin(normal)
         tx, ty = 4.0 * math.cos(tangent), 4.0 * math.sin(tangent)
-        segments.append((cx - tx, cy - ty, cx + tx, cy + ty))
+        segments.extend(_thick((cx - tx, cy - ty), (cx + tx, cy + ty), normal))
     if geometry == "door":
         # A wall with one door across the heading, its gap a little wider than the body needs.
         distance = keep_out + u[6] * 1.2
@@ -524,10 +540,10 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         for sign in (-1.0, 1.0):
             near = centre + sign * 0.5 * width * along
             far = centre + sign * 4.0 * along
-            segments.append((near[0], near[1], far[0], far[1]))
+            segments.extend(_thick(tuple(near), tuple(far), angle))
         if u[10] > 0.5:   # a back wall behind the door
             back = centre + (0.4 + u[11]) * np.array([c, s])
-            segments.append((*(back - 3.0 * along), *(back + 3.0 * along)))
+            segments.extend(_thick(tuple(back - 3.0 * along), tuple(back + 3.0 * along), angle))
     v_scale = max(spec.v_max, -spec.v_min)
     if nominal == "arc":
         params: tuple[float, ...] = (spec.v_max * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))

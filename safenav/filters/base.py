@@ -156,7 +156,7 @@ def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
     Commands are compared as fractions of the velocity limits ``scale``, the nominal clipped to
     them; the progress is the projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
     """
-    nominal = np.clip(u_nom / scale, -1.0, 1.0)
+    nominal = np.clip(u_nom, -scale, scale) / scale
     size = float(nominal @ nominal)
     if size <= 0.0:
         return 1.0

@@ -30,7 +30,7 @@ import numpy as np
 from safenav import _checks
 from safenav.robot import RobotSpec
 
-__all__ = ["BodyModel", "polygon_distance"]
+__all__ = ["BodyModel", "inside_polygon", "polygon_distance"]
 
 #: Angular spacing of the outline samples [rad] (well below the 5-degree gap bridged by the filters).
 BOUNDARY_STEP = math.radians(2.0)
@@ -55,6 +55,19 @@ def polygon_distance(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
     cross = edge[None, :, 0] * relative[..., 1] - edge[None, :, 1] * relative[..., 0]
     inside = np.all(cross >= 0.0, axis=1) | np.all(cross <= 0.0, axis=1)
     return np.where(inside, -distance, distance)
+
+
+def inside_polygon(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Mask of ``points`` ``(N, 2)`` inside ``polygon`` ``(V, 2)`` (any simple polygon; even-odd rule) [m]."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    a = np.asarray(polygon, dtype=float)
+    b = np.roll(a, -1, axis=0)
+    x, y = points[:, None, 0], points[:, None, 1]
+    straddles = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing_x = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] -
+                                                                                            a[None, :, 1])
+    return np.count_nonzero(straddles & (x < crossing_x), axis=1) % 2 == 1
 
 
 @dataclass(frozen=True, eq=False)
