@@ -29,6 +29,7 @@ implements to be shielded.
 from safenav._optional import require
 
 require("gymnasium", extra="gym", purpose="safenav's Gymnasium environments")
+require("pybullet", extra="sim", purpose="the simulator behind safenav's Gymnasium environments")
 
 from safenav.gym.env import SafeNavEnv  # noqa: E402 - after the dependency check, which names the extra
 from safenav.gym.errors import UnsupportedEnv  # noqa: E402
