@@ -43,6 +43,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
+from safenav._optional import require
 from safenav.filters import make_filter
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
@@ -605,7 +606,7 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
         for _ in range(episodes):
             evaluate(rng.uniform(0.0, 1.0, N_COORDINATES))
         return found
-    import cma
+    cma = require("cma", extra="bench", purpose="the falsifier's CMA-ES search")
 
     while len(found) < episodes:
         budget = episodes - len(found)

@@ -19,6 +19,7 @@ from safenav.filters.defaults import (
     default_margin,
     default_weights,
     lag_fraction,
+    noise_allowance,
     reaction_time,
 )
 from safenav.filters.perception import nearest_per_bin
@@ -246,6 +247,7 @@ class CBFSafetyFilter(SafetyFilter):
         self.config = base_config.resolve(robot, dt)
         cfg = self.config
         self.margin = float(cfg.margin)
+        self._allowance = noise_allowance(robot, self.margin)
         body = {"disk": BodyModel.disk, "polygon": BodyModel.polygon,
                 "cover": lambda spec: BodyModel.cover(spec, cfg.n_disks)}[cfg.body](robot)
         super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
@@ -292,7 +294,12 @@ class CBFSafetyFilter(SafetyFilter):
         """Every row of every family, from every point that can matter (every point with ``cut=False``)."""
         robot, body = self.robot, self.body
         lower, upper = robot.velocity_bounds(velocity, period if velocity is not None else None)
-        kappa = 0.5 * robot.omega_max * period
+        # The heading turns within the period at most at the fastest yaw rate of the box (and of the
+        # current velocity): the arc coefficient of every row uses that rate, not omega_max.
+        turn = max(abs(float(lower[1])), abs(float(upper[1])))
+        if velocity is not None:
+            turn = max(turn, abs(float(velocity[1])))
+        kappa = 0.5 * turn * period
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
         points, uncertainty = view.points, view.uncertainty
@@ -306,6 +313,9 @@ class CBFSafetyFilter(SafetyFilter):
             near = distance - uncertainty <= reach + self._extent[1]
             if not near.all():
                 points, uncertainty = points[near], uncertainty[near]
+        # Rows leave one period's travel along the heading free where a point allows it (rows.slide).
+        tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma,
+                    travel=max(abs(float(lower[0])), abs(float(upper[0]))) * period)
         if self._polygon is not None:
             kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
@@ -313,13 +323,13 @@ class CBFSafetyFilter(SafetyFilter):
                 return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
 
             geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
-                                                       polygon_limit if cut else None)
+                                                       polygon_limit, **tilt)
         else:
             def limit(smallest: float) -> float:
                 return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
 
             geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
-                                               self.margin, kappa, limit if cut else None)
+                                               self.margin, kappa, limit, **tilt)
         min_barrier = float(per_point.min()) if per_point.size else math.inf
         barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
         obstacle = barrier
@@ -328,9 +338,10 @@ class CBFSafetyFilter(SafetyFilter):
             # stopping speed, exceeds every approach speed the box allows beyond it).
             pair_distance = 0.0 if self._polygon is None else np.sqrt(points[geo.point, 0] ** 2 +
                                                                       points[geo.point, 1] ** 2)
-            near = geo.barrier <= self._braking_reach(lower, upper, velocity, period, reaction, pair_distance)
+            near = geo.barrier + self._allowance <= self._braking_reach(lower, upper, velocity, period, reaction,
+                                                                        pair_distance)
             close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
-            braking = families.braking_rows(close, robot.a_max, reaction)
+            braking = families.braking_rows(close, robot.a_max, reaction, self._allowance)
             h = barrier.h.copy()
             family = barrier.family.copy()
             index = np.flatnonzero(near)
@@ -338,9 +349,10 @@ class CBFSafetyFilter(SafetyFilter):
             h[index[tighter]] = braking.h[tighter]
             family[index[tighter]] = braking.family[tighter]
             obstacle = families.Rows(barrier.G, h, barrier.point, family)
-            sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction)
+            sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
+                                         self._allowance)
             obstacle = families.stack(obstacle, sweep)
-            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant))
+            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)

@@ -44,9 +44,9 @@ def barriers(points: np.ndarray, body: BodyModel, lookahead: float, margin: floa
 @settings(max_examples=600)
 @given(pairs(), st.floats(0.01, 1.0))
 def test_barrier_rows_keep_the_discrete_time_condition_for_the_exact_unicycle(case, gamma):
-    robot, body, lookahead, points, command = case
+    _, body, lookahead, points, command = case
     margin = 0.03
-    kappa = 0.5 * robot.omega_max * DT
+    kappa = 0.5 * abs(command[1]) * DT    # the yaw rate held over the period bounds the arc
     geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, kappa)[0]
     rows = families.barrier_rows(geo, gamma, 1.0, DT)
     z = np.concatenate((command, np.abs(command)))
@@ -69,6 +69,49 @@ def test_far_gamma_bounds_each_point_loss(case, gamma, far):
     after = barriers(points, body, lookahead, 0.03, unicycle_step(Pose2D(), *command, DT))
     outside = geo.barrier > 0.0
     assert np.all(after[outside] >= (1.0 - far) * geo.barrier[outside] - 1e-9)
+
+
+@settings(max_examples=600)
+@given(pairs(), st.floats(0.01, 1.0), st.floats(0.0, 0.2))
+def test_tilted_half_planes_keep_the_barrier_condition(case, gamma, travel):
+    """Rows written with the half-planes ``slide`` picks (not each point's own direction) still give
+    ``H(x+) >= (1 - gamma) H(x)`` for the exact unicycle, and no half-plane goes below the floor."""
+    _, body, lookahead, points, command = case
+    margin = 0.03
+    kappa = 0.5 * abs(command[1]) * DT
+    geo, per_point = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin,
+                                       kappa, floor_ratio=1.0 - gamma, travel=travel)
+    H = float(per_point.min())
+    assert np.all(geo.barrier >= min((1.0 - gamma) * H, H) - 1e-9)
+    own = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, kappa)[0]
+    assert np.all(geo.barrier <= own.barrier + 1e-9)   # a half-plane is never above its pair's barrier
+    rows = families.barrier_rows(geo, gamma, 1.0, DT, smallest=H)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    after = barriers(points, body, lookahead, margin, unicycle_step(Pose2D(), *command, DT))
+    assert after.min() >= (1.0 - gamma) * H - 1e-9
+
+
+@settings(max_examples=300)
+@given(st.floats(0.0, 0.5))
+def test_tilted_half_planes_let_the_base_slide_along_a_wall(gap):
+    """A straight wall beside the body at the barrier's own level: with the tilt, driving straight
+    along it at full speed satisfies every barrier row; with each point's own direction it does not."""
+    robot = preset("m2wr")
+    body = BodyModel.disk(robot)
+    lookahead, margin, gamma = 0.1, 0.03, 0.05
+    y = robot.radius + lookahead + margin + gap
+    points = np.column_stack((np.linspace(-1.0, 3.0, 801), np.full(801, y)))
+    command = np.array([robot.v_max, 0.0])
+    z = np.concatenate((command, np.abs(command)))
+    tilted, per_point = families.geometry(points, np.zeros(801), body.centres, body.radii, lookahead, margin, 0.0,
+                                          floor_ratio=1.0 - gamma, travel=robot.v_max * DT)
+    rows = families.barrier_rows(tilted, gamma, 1.0, DT, smallest=float(per_point.min()))
+    assert np.all(rows.G @ z <= rows.h + 1e-9)
+    own = families.barrier_rows(families.geometry(points, np.zeros(801), body.centres, body.radii, lookahead,
+                                                  margin, 0.0)[0], gamma, 1.0, DT)
+    if gap < 0.01:   # near the margin, each point's own direction forbids driving past it
+        assert not np.all(own.G @ z <= own.h)
 
 
 @settings(max_examples=400)
@@ -120,13 +163,29 @@ def test_sweep_rows_cap_the_speed_towards_points_the_heading_can_swing_to(bearin
     geo = families.geometry(point, np.zeros(1), np.zeros((1, 2)), np.array([robot.radius]), 0.0, 0.03, 0.0)[0]
     reaction = DT
     rows = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, DT, reaction)
-    sweep = (abs(turn) + robot.alpha_max * DT) * (speed / robot.a_max + reaction)
+    sweep = families.braking_swing(velocity, robot.alpha_max, DT, reaction)
     limit = families.stopping_speed(geo.barrier, robot.a_max, reaction)[0]
     if abs(bearing) <= sweep:   # the heading may face it before stopping: the forward speed is capped fully
         forward = rows.take(rows.G[:, 0] > 0)
         assert len(forward) == 1 and forward.G[0, 0] == 1.0 and forward.h[0] == limit
     if abs(bearing) >= math.pi / 2 + sweep:   # it cannot come ahead: no forward cap
         assert not np.any(rows.G[:, 0] > 0)
+
+
+@settings(max_examples=300)
+@given(st.floats(-2.0, 2.0), st.floats(-1.0, 1.0), st.floats(0.5, 10.0), st.floats(0.01, 0.2), st.floats(0.0, 0.3))
+def test_braking_swing_bounds_the_heading_change_of_a_braking_base(turn, command_share, alpha, dt, lag):
+    """A base at its yaw acceleration limit: any command reachable within the period, held for
+    the reaction time, then braking to zero yaw rate, turns by at most the braking swing."""
+    reaction = dt + lag
+    swing = families.braking_swing(np.array([0.5, turn]), alpha, dt, reaction)
+    command = turn + command_share * alpha * dt
+    rate, heading, step = turn, 0.0, 1e-4
+    for k in range(int(reaction / step) + int((abs(command) + alpha * dt) / alpha / step) + 10):
+        target = command if k * step < reaction else 0.0
+        rate += float(np.clip(target - rate, -alpha * step, alpha * step))
+        heading += rate * step
+    assert abs(heading) <= swing + 1e-3 * (1.0 + swing)
 
 
 @st.composite
@@ -186,8 +245,8 @@ def polygon_pairs(draw):
 @given(polygon_pairs(), st.floats(0.01, 1.0))
 def test_polygon_barrier_rows_keep_the_condition_for_the_exact_unicycle(case, gamma):
     """The point-to-polygon barrier: rows that hold give H(x+) >= (1 - gamma) H(x), turning included."""
-    robot, body, points, command = case
-    kappa = 0.5 * robot.omega_max * DT
+    _, body, points, command = case
+    kappa = 0.5 * abs(command[1]) * DT    # the yaw rate held over the period bounds the arc
     geo, _ = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.03, kappa)
     rows = families.barrier_rows(geo, gamma, 1.0, DT)
     z = np.concatenate((command, np.abs(command)))
@@ -206,3 +265,21 @@ def test_polygon_geometry_is_the_signed_distance_and_its_gradient(case):
     step = 1e-6   # the gradient, by finite differences along it
     gradient_x = (polygon_distance(body.outline, points + np.array([step, 0.0])) - barrier) / step
     np.testing.assert_allclose(geo.approach[:, 0], gradient_x, atol=1e-4)
+
+
+@settings(max_examples=400)
+@given(polygon_pairs(), st.floats(0.01, 1.0), st.floats(0.0, 0.2))
+def test_tilted_polygon_half_planes_keep_the_barrier_condition(case, gamma, travel):
+    _, body, points, command = case
+    kappa = 0.5 * abs(command[1]) * DT
+    geo, barrier = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.03, kappa,
+                                             floor_ratio=1.0 - gamma, travel=travel)
+    H = float(barrier.min())
+    assert np.all(geo.barrier >= min((1.0 - gamma) * H, H) - 1e-9)
+    assert np.all(geo.barrier <= barrier[geo.point] + 1e-9)
+    rows = families.barrier_rows(geo, gamma, 1.0, DT, smallest=H)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    moved = unicycle_step(Pose2D(), *command, DT).to_local(points)
+    _, after = families.polygon_geometry(moved, np.zeros(len(points)), body.outline, 0.03, kappa)
+    assert after.min() >= (1.0 - gamma) * H - 1e-9

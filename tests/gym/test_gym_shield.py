@@ -228,7 +228,8 @@ class WrongShape(SquareRoom):
     (lambda: SafetyShield(SquareRoom(), "none"), InvalidConfig, "filter='none' makes no shield"),
     (lambda: SafetyShield(SquareRoom(), "magic"), UnknownName, "unknown filter 'magic'; expected one of: cbf"),
     (lambda: SafetyShield(SquareRoom(), 3), InvalidConfig,
-     r"filter must be a name \(zones, cbf, mpc, zones\+escape, cbf\+escape, mpc\+escape\), a SafetyFilter or an Escape, got 3"),
+     r"filter must be a name \(zones, cbf, mpc, zones\+escape, cbf\+escape, mpc\+escape\), a SafetyFilter or an "
+     r"Escape, got 3"),
     (lambda: SafetyShield(SquareRoom(), intervention_penalty=-1.0), InvalidConfig,
      "SafetyShield.intervention_penalty must be a finite number >= 0, got -1.0"),
     (lambda: SafetyShield(SquareRoom(), CBFSafetyFilter(preset("puzzlebot").replace(v_min=0.0, v_max=0.3,
