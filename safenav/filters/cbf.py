@@ -36,6 +36,13 @@ VERIFY_TOLERANCE = 1e-6
 AUX_REGULARISATION = 1e-9
 #: Linear cost on the slack variable [s/m] (with slack_weight: an exact penalty in practice).
 SLACK_LINEAR_WEIGHT = 1e3
+#: The tiers of obstacle rows a slack may relax, in order: the rows of remembered points located
+#: worse than the margin (odometry uncertainty > margin), then also those of points already inside
+#: the margin, then every obstacle row. A tier is relaxed only when no command in the box keeps
+#: every row of the later tiers: a point the filter can no longer place, or one it is already too
+#: close to, never buys its recovery by relaxing the rows of the points the body is still clear of.
+SLACK_TIERS = ("lost", "inside", "outside")
+_BARRIER = families.FAMILIES.index("barrier")
 #: Look-ahead distance [m] of the single-disk model (steering authority vs 2 l of conservatism head-on).
 DEFAULT_LOOKAHEAD = 0.1
 MAX_GENERATION_ROUNDS = 8
@@ -157,6 +164,7 @@ class _Problem(NamedTuple):
     rows: families.Rows
     points: np.ndarray          # (N, 2) obstacle points the pairs refer to
     barrier: np.ndarray         # (N,) smallest barrier of each point over the disks [m]
+    uncertainty: np.ndarray     # (N,) position uncertainty of each point (remembered ones) [m]
     min_barrier: float
     lower: np.ndarray           # (4,) bounds on z
     upper: np.ndarray
@@ -362,7 +370,7 @@ class CBFSafetyFilter(SafetyFilter):
             rows = obstacle
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
-        return _Problem(rows, points, per_point, min_barrier, np.concatenate((lower, t_low)),
+        return _Problem(rows, points, per_point, uncertainty, min_barrier, np.concatenate((lower, t_low)),
                         np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
 
     def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
@@ -425,7 +433,9 @@ class CBFSafetyFilter(SafetyFilter):
         smoothing = self.config.smoothing if self._called else 0.0
         return (target + smoothing * self._last_command) / (1.0 + smoothing) if smoothing > 0.0 else target
 
-    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
+    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: int | None = None) -> QPData:
+        """The QP over ``rows``; with ``slack`` (a tier index) one slack relaxes the obstacle rows of
+        tiers up to it (:data:`SLACK_TIERS`) and the other rows stay hard."""
         P = self._P
         target = self._target(u_nom)
         q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
@@ -433,13 +443,34 @@ class CBFSafetyFilter(SafetyFilter):
         abs_rows = families.abs_rows()
         G = np.vstack((abs_rows.G, rows.G))
         h = np.concatenate((abs_rows.h, rows.h))
-        if slack:
+        if slack is not None:
+            stage_h, stage_relaxed = self._stage(rows, problem, slack)
+            h = np.concatenate((abs_rows.h, stage_h))
+            relaxed = np.concatenate((np.zeros(len(abs_rows), dtype=bool), stage_relaxed))
             P = np.diag([*np.diag(P), self.config.slack_weight])
             q = np.append(q, SLACK_LINEAR_WEIGHT)
-            soft = np.concatenate((np.zeros(len(abs_rows), dtype=bool), ~rows.hard))
-            G = np.column_stack((G, -soft.astype(float)))
+            G = np.column_stack((G, -relaxed.astype(float)))
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)
         return QPData(P, q, G, h, lower, upper)
+
+    def _stage(self, rows: families.Rows, problem: _Problem, tier: int) -> tuple[np.ndarray, np.ndarray]:
+        """Right sides and the mask of the rows one slack relaxes in the stage of ``tier``.
+
+        The slack relaxes the obstacle rows of the tiers up to ``tier`` (:data:`SLACK_TIERS`).
+        From the ``inside`` tier on, a barrier row of a point inside the margin asks only that
+        the point is not approached (right side at least 0) rather than left at the recovery
+        rate: the deepest point's recovery never sets the slack every other row is relaxed by.
+        """
+        soft = ~rows.hard
+        if tier == 0:
+            index = np.where(rows.point >= 0, rows.point, 0)
+            return rows.h, soft & (rows.point >= 0) & (problem.uncertainty[index] > self.margin)
+        index = np.where(rows.point >= 0, rows.point, 0)
+        inside = soft & (rows.point >= 0) & (problem.barrier[index] <= 0.0)
+        h = np.where(inside & (rows.family == _BARRIER), np.maximum(rows.h, 0.0), rows.h)
+        if tier >= len(SLACK_TIERS) - 1:
+            return h, soft
+        return h, inside | (soft & (rows.point >= 0) & (problem.uncertainty[index] > self.margin))
 
     @staticmethod
     def _prune(rows: families.Rows, problem: _Problem) -> np.ndarray:
@@ -506,6 +537,7 @@ class CBFSafetyFilter(SafetyFilter):
         initial = working.copy()
         z, working, solve_time, _ = self._solve_generating(u_nom, cand, working, problem)
         slack = 0.0
+        tier: int | None = None
         status = FilterStatus.OK
         reason: Reason | None = None
         if z is None:
@@ -513,9 +545,16 @@ class CBFSafetyFilter(SafetyFilter):
             if not self._hard_feasible(hard, problem):
                 return self._brake(u_nom, velocity, FilterStatus.BRAKING, *self._hard_reason(hard, problem),
                                    solver=self.backend.name, solve_time=solve_time, period=period, **details)
-            # No command satisfies every row: relax the obstacle rows (never the hard ones) by one slack.
-            z, working, more_time, solver_status = self._solve_generating(u_nom, cand, initial, problem, slack=True)
-            solve_time += more_time
+            # No command satisfies every row: relax obstacle rows (never the hard ones) by one slack,
+            # tier by tier, until some command keeps every row that is not relaxed.
+            for tier in range(len(SLACK_TIERS)):   # noqa: B007 (the tier found is used below)
+                if tier == 0 and not self._stage(cand, problem, tier)[1].any():
+                    continue
+                z, working, more_time, solver_status = self._solve_generating(u_nom, cand, initial, problem,
+                                                                               slack=tier)
+                solve_time += more_time
+                if z is not None:
+                    break
             if z is None:
                 return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
                                    f"QP solver {self.backend.name} failed ({solver_status}) even with slack",
@@ -523,6 +562,10 @@ class CBFSafetyFilter(SafetyFilter):
             z, slack = z[:4], max(float(z[4]), 0.0)
             if slack > VERIFY_TOLERANCE:
                 status = FilterStatus.SLACK
+        bound = rows.h
+        if tier is not None:
+            stage_h, stage_relaxed = self._stage(rows, problem, tier)
+            bound = stage_h + np.where(stage_relaxed, slack, 0.0)
         u = np.clip(z[:2], lower, upper)
         frontier = view.frontier
         if frontier.backward:   # exactly never towards an unseen rear (the solver meets rows to ~1e-10)
@@ -530,7 +573,7 @@ class CBFSafetyFilter(SafetyFilter):
         if frontier.forward:
             u[0] = min(u[0], max(0.0, lower[0]))
         lifted = self._lifted(u, problem)
-        residual = rows.G @ lifted - rows.h - np.where(rows.hard, 0.0, slack)
+        residual = rows.G @ lifted - bound
         if not np.all(residual <= VERIFY_TOLERANCE):
             worst = int(np.argmax(residual))
             return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
@@ -539,13 +582,15 @@ class CBFSafetyFilter(SafetyFilter):
                                period=period, **details)
         if status is FilterStatus.SLACK:
             worst = int(np.argmax(np.where(rows.hard, -np.inf, rows.G @ lifted - rows.h)))
-            reason = self._slack_reason(rows, worst, points, problem.min_barrier, slack * period)
+            reason = self._slack_reason(rows, worst, points, problem.min_barrier, slack * period, tier)
         else:
             reason = self._binding(u, u_nom, rows, rows.G @ lifted - rows.h, points, problem)
             if problem.min_barrier < 0.0:
                 status = FilterStatus.RECOVERING
-                reason = Reason("barrier", f"inside the margin (barrier {problem.min_barrier:.3f} m); moving back "
-                                           "out", _nearest(points, problem.barrier))
+                how = ("moving back out" if tier is None else
+                       "holding its distance (no command in the box leaves at the recovery rate)")
+                reason = Reason("barrier", f"inside the margin (barrier {problem.min_barrier:.3f} m); {how}",
+                                _nearest(points, problem.barrier))
         rows_used = candidate[working]
         row_points = rows.point[rows_used]
         used = np.zeros(len(points) + 1, dtype=bool)   # the extra slot absorbs rows without a point (-1)
@@ -561,7 +606,7 @@ class CBFSafetyFilter(SafetyFilter):
         )
 
     def _solve_generating(self, u_nom: np.ndarray, rows: families.Rows, working: np.ndarray, problem: _Problem,
-                          slack: bool = False) -> tuple[np.ndarray | None, np.ndarray, float, str]:
+                          slack: int | None = None) -> tuple[np.ndarray | None, np.ndarray, float, str]:
         """Solve over the rows in ``working``, adding violated rows until none is (constraint generation).
 
         Returns the solution (``None`` on failure), the final working set, the solve time [s]
@@ -570,7 +615,6 @@ class CBFSafetyFilter(SafetyFilter):
         working = working.copy()
         solve_time = 0.0
         outcome = None
-        soft = ~rows.hard
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
@@ -579,8 +623,11 @@ class CBFSafetyFilter(SafetyFilter):
             z = outcome.x
             if z is None:
                 return None, working, solve_time, outcome.status
-            lhs = rows.G @ z[:4] - (soft * z[4] if slack else 0.0)
-            violated = (lhs > rows.h + 0.1 * VERIFY_TOLERANCE) & ~working
+            bound = rows.h
+            if slack is not None:
+                stage_h, relaxed = self._stage(rows, problem, slack)
+                bound = stage_h + np.where(relaxed, z[4], 0.0)
+            violated = (rows.G @ z[:4] > bound + 0.1 * VERIFY_TOLERANCE) & ~working
             if not violated.any():
                 return z, working, solve_time, outcome.status
             working |= violated
@@ -606,14 +653,18 @@ class CBFSafetyFilter(SafetyFilter):
                            f"acceleration limits; braking at the limits")
 
     def _slack_reason(self, rows: families.Rows, worst: int, points: np.ndarray, min_barrier: float,
-                      slack: float) -> Reason:
-        """Why no command satisfied every obstacle row; ``slack`` is the relaxation per period [m]."""
+                      slack: float, tier: int) -> Reason:
+        """Why no command satisfied every obstacle row; ``slack`` is the relaxation per period [m] of
+        the rows of tiers up to ``tier`` (:data:`SLACK_TIERS`)."""
         point = _point(points, int(rows.point[worst]))
         family = self._family(rows, worst)
+        which = ("the rows of remembered points located worse than the margin",
+                 "the rows of points inside the margin (beyond not approaching them)",
+                 "every obstacle row")[tier]
         if min_barrier < 0.0:
-            return Reason(family, f"already inside the margin (barrier {min_barrier:.3f} m); obstacle rows "
-                                  f"relaxed by {slack:.4f} m, moving away", point)
-        return Reason(family, f"cannot brake in time under the acceleration limits; obstacle rows relaxed by "
+            return Reason(family, f"already inside the margin (barrier {min_barrier:.3f} m), moving away; {which} "
+                                  f"relaxed by {slack:.4f} m", point)
+        return Reason(family, f"cannot brake in time under the acceleration limits; {which} relaxed by "
                               f"{slack:.4f} m", point)
 
     def _binding(self, u: np.ndarray, u_nom: np.ndarray, rows: families.Rows, residual: np.ndarray,

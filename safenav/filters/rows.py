@@ -342,9 +342,11 @@ def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, small
     """The discrete-time barrier condition, one row per point-disk pair (soft).
 
     Invariant: if every row holds for the mean velocity of the period, then
-    ``h_j(o, x+) >= (1 - gamma) H(x)`` for every pair (``H`` the smallest barrier now), and,
-    with ``far_gamma < 1``, ``h_j(o, x+) >= (1 - far_gamma) h_j(o, x)`` for pairs outside
-    the margin. Hence ``H(x+) >= (1 - gamma) H(x)``: ``H >= 0`` is invariant.
+    ``h_j(o, x+) >= (1 - gamma) H(x)`` for every pair (``H`` the smallest barrier now),
+    ``h_j(o, x+) >= (1 - gamma) h_j(o, x)`` for pairs inside the margin (``h_j <= 0``: every point
+    the body is already too close to is left at the recovery rate), and, with ``far_gamma < 1``,
+    ``h_j(o, x+) >= (1 - far_gamma) h_j(o, x)`` for pairs outside the margin. Hence
+    ``H(x+) >= (1 - gamma) H(x)``: ``H >= 0`` is invariant.
 
     Why: ``||.||`` is convex, so ``h(x+) >= h(x) + n . delta`` for the displacement
     ``delta`` of the control point, and the exact displacement of a unicycle holding a
@@ -367,6 +369,10 @@ def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, small
     rhs = barrier - (1.0 - gamma) * smallest
     if far_gamma < 1.0:
         rhs = np.where(barrier > 0.0, np.minimum(rhs, far_gamma * barrier), rhs)
+    # A pair already inside the margin leaves at its own rate, whatever the smallest barrier: with
+    # H < 0 the condition on H alone would let the body close on every shallower pair down to
+    # (1 - gamma) H (a point 2 cm inside the margin approached by 17 cm because another is 26 cm in).
+    rhs = np.where(barrier <= 0.0, np.minimum(rhs, gamma * barrier), rhs)
     everything = np.ones(barrier.size, dtype=bool)
     return _rows(_approach_block(geo, everything), rhs / dt, geo.point, "barrier")
 

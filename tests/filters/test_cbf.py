@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from safenav import InvalidConfig, LidarSpec, Pose2D, UnknownName, preset, unicycle_step
 from safenav.filters import CBFSafetyFilter, FilterStatus, available_solvers
 from safenav.filters.qp import QPOutcome
-from safenav.synthetic import Circle, Scene, box, synthetic_scan, wall
+from safenav.robot import PRESET_NAMES
+from safenav.synthetic import Circle, Scene, Segment, box, synthetic_scan, wall
 
 DT = 0.05
 
@@ -111,8 +112,14 @@ def test_filter_properties_on_random_scans(case):
         return
     assert full_residual(filt, u_nom, scan, velocity, u, hard=True).max(initial=0.0) <= 1e-6
     residual = full_residual(filt, u_nom, scan, velocity, u)
-    if result.status is FilterStatus.SLACK:
-        assert residual.max(initial=0.0) <= result.slack / DT + 1e-6
+    if result.status in (FilterStatus.SLACK, FilterStatus.RECOVERING):
+        # Inside the margin, a barrier row may be held at "not approached" (right side 0) instead
+        # of the recovery rate; beyond that, obstacle rows are relaxed by at most the slack.
+        rows = filt.rows(scan, velocity, reduce=False)
+        held = np.where(rows.family == 0, np.maximum(rows.h, 0.0), rows.h)
+        assert (rows.G @ lifted(u, velocity) - held).max(initial=0.0) <= result.slack / DT + 1e-6
+        if "holding" not in result.message and result.status is FilterStatus.RECOVERING:
+            assert residual.max(initial=0.0) <= 1e-6
     else:
         assert residual.max(initial=0.0) <= 1e-6
     assert (result.reason is None) == (not result.modified and result.status is FilterStatus.OK)
@@ -137,6 +144,8 @@ def test_reduction_gives_the_answer_of_the_full_qp(case):
     filt = CBFSafetyFilter(robot, DT)
     result = filt.filter(u_nom, scan, velocity=velocity)
     if result.status not in (FilterStatus.OK, FilterStatus.RECOVERING) or not result.modified:
+        return
+    if "holding" in result.message:   # the answer of a relaxed stage, as with slack
         return
     full = filt.build_qp(u_nom, scan, velocity, reduce=False)
     reference = qpsolvers.solve_problem(full, solver="quadprog")
@@ -477,3 +486,32 @@ def test_every_real_scan_filters_without_error_nan_or_solver_fallback(lidar_data
             assert result.status is not FilterStatus.FALLBACK, (index, u_nom, result.message)
             statuses[result.status] = statuses.get(result.status, 0) + 1
     assert statuses.get(FilterStatus.OK, 0) > len(recording)   # mostly a normal day
+
+
+# ------------------------------------------------------------------ liveness beside a wall
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_a_base_at_its_acceleration_limits_slides_along_a_wall_the_nominal_turns_into(name):
+    """A wall 0.15 m beside the body, the nominal turning into it at full speed and full yaw rate,
+    a base ramping at its acceleration limits, the velocity and odometry given: the filter keeps
+    the margin and lets the base slide along the wall at most of its top speed."""
+    robot = preset(name)
+    y = robot.radius + 0.15
+    scene = Scene.of(Segment((0.16, y), (6.0, y)))
+    filt = CBFSafetyFilter(robot, DT)
+    pose, velocity = Pose2D(), np.zeros(2)
+    nominal = np.array([robot.v_max, robot.omega_max])
+    duration, worst, statuses = 4.0, math.inf, []
+    for _ in range(round(duration / DT)):
+        result = filt.filter(nominal, synthetic_scan(robot, scene, pose), velocity=velocity,
+                             pose=(pose.x, pose.y, pose.yaw))
+        statuses.append(result.status)
+        for _ in range(10):
+            velocity = robot.clip(result.u, velocity, DT / 10)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT / 10)
+            worst = min(worst, y - pose.y - robot.radius)
+    assert worst >= filt.margin - 0.01
+    ramp = robot.v_max / robot.a_max
+    reachable = robot.v_max * (duration - ramp) + 0.5 * robot.v_max * ramp
+    assert pose.x >= 0.6 * reachable, f"{name} slid only {pose.x:.2f} m of {reachable:.2f} m"

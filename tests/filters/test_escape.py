@@ -87,7 +87,11 @@ def test_every_escaped_command_keeps_every_row_of_the_filter(scene, name, turn):
             z = np.concatenate((result.u, np.maximum(np.abs(result.u), np.abs(velocity))))
             slack = result.slack / 0.05 if result.status.value == "slack" else 0.0
             assert np.all(rows.take(rows.hard).G @ z <= rows.take(rows.hard).h + 1e-6)
-            assert np.all(rows.G @ z <= rows.h + slack + 1e-6)
+            bound = rows.h
+            if result.status.value in ("slack", "recovering"):
+                # inside the margin a barrier row may be held at "not approached" (right side 0)
+                bound = np.where(rows.family == 0, np.maximum(rows.h, 0.0), rows.h)
+            assert np.all(rows.G @ z <= bound + slack + 1e-6)
             assert np.array_equal(result.u_nom, [robot.v_max, turn])   # the original nominal is reported
         velocity = result.u.copy()        # the base reaches each command; the scan stays (static robot view)
 

@@ -135,3 +135,29 @@ def test_late_calls_with_the_time_given_are_planned_for_the_measured_period(filt
     log = assert_safe(Episode(robot="rosbot", filter=filter_name, base="ramp_limit", dt=0.05, period=period,
                               segments=((2.0, -3.0, 2.0, 3.0),), nominal="arc", params=(1.0, 0.0), duration=4.0))
     assert {row["status"] for row in log} & {"late"}
+
+
+# ------------------------------------------------------------------ hole 6: one slack for every obstacle row
+
+
+@pytest.mark.parametrize("depth", [0.06, 0.1])
+def test_slack_for_a_point_inside_the_margin_does_not_relax_the_rows_of_points_outside_it(depth):
+    # A wall behind the ROSbot already ``depth`` inside the margin asks the base, at rest, to move
+    # away faster than its acceleration allows; the wall ahead is just outside the margin. Before: one slack relaxed
+    # every obstacle row alike, so the command also drove into the wall's margin; repeated
+    # over a few seconds (the m2wr in clutter, a remembered point whose odometry uncertainty
+    # had grown to 1.2 m) the robot drove into an obstacle at 7 mm per period.
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, 0.05)
+    reach = robot.radius + filt.margin
+    ahead = reach + 2.0 * filt.lookahead + 0.005   # the look-ahead disk: radius + l, l ahead
+    scene = Scene.of(Segment((ahead, -1.0), (ahead, 1.0)), Segment((-(reach - depth), -1.0), (-(reach - depth), 1.0)))
+    scan = synthetic_scan(robot, scene)
+    result = filt.filter(np.array([0.0, 0.0]), scan, velocity=np.zeros(2))
+    assert result.status in (FilterStatus.SLACK, FilterStatus.RECOVERING), result.message
+    rows = filt.rows(scan, velocity=np.zeros(2), reduce=False)
+    lifted = np.concatenate((result.u, np.abs(result.u)))
+    outside = (rows.point >= 0) & ~rows.hard
+    ahead_rows = outside & (rows.G[:, 0] > 0)   # rows that forward motion tightens: the wall's
+    assert ahead_rows.any()
+    assert np.all(rows.G[ahead_rows] @ lifted <= rows.h[ahead_rows] + 1e-6), result.message
