@@ -547,7 +547,7 @@ class CBFSafetyFilter(SafetyFilter):
                                    solver=self.backend.name, solve_time=solve_time, period=period, **details)
             # No command satisfies every row: relax obstacle rows (never the hard ones) by one slack,
             # tier by tier, until some command keeps every row that is not relaxed.
-            for tier in range(len(SLACK_TIERS)):   # noqa: B007 (the tier found is used below)
+            for tier in range(len(SLACK_TIERS)):
                 if tier == 0 and not self._stage(cand, problem, tier)[1].any():
                     continue
                 z, working, more_time, solver_status = self._solve_generating(u_nom, cand, initial, problem,
