@@ -59,9 +59,10 @@ __all__ = [
 
 BASES = ("instant", "ramp", "ramp_limit", "lag")
 """Models of the base's velocity loop (see the module docstring)."""
-NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script")
-"""Nominal policies an episode can use (``script`` replays a fixed command sequence)."""
-SEARCHED_NOMINALS = NOMINALS[:-1]
+NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script", "goal")
+"""Nominal policies an episode can use (``script`` replays a fixed command sequence, ``goal`` drives
+to a point with safenav's go-to-goal policy)."""
+SEARCHED_NOMINALS = NOMINALS[:-2]
 """Nominal policies the search drives the filter with."""
 SUBSTEPS = 20
 """Exact unicycle sub-steps per control period."""
@@ -91,6 +92,9 @@ class Episode:
         noise: range noise, uniform within ``+- noise`` [m] (inside the filters' ``2 noise_std``).
         seed: seed of the range noise.
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
+        period: how long each command is really held [s] (default ``dt``); the filter is told
+            the time (``now``), so a longer period is a late call it must plan for.
+        escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
     """
 
     robot: str
@@ -107,6 +111,8 @@ class Episode:
     noise: float = 0.0
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
+    period: float | None = None
+    escape: bool = False
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -116,9 +122,11 @@ class Episode:
     def from_json(cls, text: str) -> Episode:
         data = json.loads(text)
         for name in ("circles", "segments"):
-            data[name] = tuple(tuple(item) for item in data.get(name, ()))
+            if name in data:
+                data[name] = tuple(tuple(item) for item in data[name])
         for name in ("params", "velocity"):
-            data[name] = tuple(data.get(name, ()))
+            if name in data:
+                data[name] = tuple(data[name])
         return cls(**data)
 
     def scene(self) -> Scene:
@@ -151,6 +159,9 @@ class Outcome:
     steps: int
 
     hidden_at_start: bool = False
+    deadlock_time: float = 0.0
+    escape_steps: int = 0
+    goal_distance: float | None = None
 
     @property
     def valid(self) -> bool:
@@ -195,33 +206,40 @@ def hidden_at_start(robot: RobotSpec, scene: Scene, margin: float) -> bool:
     return bool(np.any(~inside))
 
 
-def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.ndarray], np.ndarray]:
-    """The nominal ``(t, points) -> (v, omega)`` of an episode; ``points`` are the filter's view.
+def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, LaserScan, Pose2D], np.ndarray]:
+    """The nominal ``(t, scan, pose) -> (v, omega)`` of an episode.
 
     ``arc`` (v, omega): constant. ``bang_bang`` (v, omega, period): omega changes sign every
     ``period`` [s]. ``aim_nearest`` (v, gain): full speed at the nearest scan point, turning
     towards it. ``spin_then_go`` (omega, t_spin, v): spin for ``t_spin`` [s], then drive.
     ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``script`` (t_1, v_1, omega_1,
-    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after.
+    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after. ``goal``
+    (x, y): :class:`~safenav.reference.GoToGoal` to that point of the start frame, with the true pose.
     """
     p = episode.params
     kind = episode.nominal
     if kind in ("arc", "reverse"):
         command = np.array([p[0], p[1]])
-        return lambda t, points: command
+        return lambda t, scan, pose: command
     if kind == "bang_bang":
-        return lambda t, points: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
+        return lambda t, scan, pose: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
     if kind == "script":
         table = np.asarray(p, dtype=float).reshape(-1, 3)
 
-        def script(t: float, points: np.ndarray) -> np.ndarray:
+        def script(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
             row = int(np.searchsorted(table[:, 0], t, side="right"))
             return table[min(row, len(table) - 1), 1:].copy()
         return script
+    if kind == "goal":
+        from safenav.reference import GoToGoal
+
+        policy = GoToGoal(robot, goal=(p[0], p[1]))
+        return lambda t, scan, pose: np.asarray(policy(scan, pose), dtype=float)
     if kind == "spin_then_go":
-        return lambda t, points: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
+        return lambda t, scan, pose: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
     if kind == "aim_nearest":
-        def aim(t: float, points: np.ndarray) -> np.ndarray:
+        def aim(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
+            points = scan.points()
             if len(points) == 0:
                 return np.array([p[0], 0.0])
             nearest = points[np.argmin(np.hypot(points[:, 0], points[:, 1]))]
@@ -230,8 +248,8 @@ def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.nd
     raise ValueError(f"unknown nominal {kind!r}; expected one of {NOMINALS}")
 
 
-def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float
-                      ) -> np.ndarray:
+def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float,
+                      time_constant: float | None = None) -> np.ndarray:
     """The base's velocity at the middle of each of the :data:`SUBSTEPS` sub-steps, ``(SUBSTEPS + 1, 2)``.
 
     Row ``k < SUBSTEPS`` is the mean velocity over sub-step ``k`` (exact for every model, so the
@@ -263,7 +281,7 @@ def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: 
             means[:, axis] = (ramp_part + hold_part) / h
         return np.vstack((means, velocity[-1]))
     if base == "lag":
-        tau = dt
+        tau = dt if time_constant is None else time_constant
         decay = np.exp(-edges / tau)
         velocity = command + (start - command) * decay[:, None]
         # Mean over [a, b] of u + (w0 - u) e^{-t/tau}: u + (w0 - u) tau (e^{-a/tau} - e^{-b/tau}) / h.
@@ -310,7 +328,13 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     robot = preset(episode.robot)
     dt = episode.dt
     safety = make_filter(episode.filter, robot, dt, **episode.settings)
+    if episode.escape:
+        from safenav.filters.escape import Escape
+
+        safety = Escape(safety)
     margin = float(safety.margin)
+    deadlock_time = 0.0
+    escape_steps = 0
     scene = episode.scene()
     policy = nominal_policy(episode, robot)
     rng = np.random.default_rng(episode.seed)
@@ -324,20 +348,24 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     start_barrier = math.nan
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
-    steps = round(episode.duration / dt)
-    h = dt / SUBSTEPS
+    period = episode.period if episode.period is not None else dt
+    steps = round(episode.duration / period)
+    h = period / SUBSTEPS
     clearance = min_clearance
     for step in range(steps):
-        t = step * dt
+        t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
-        u_nom = policy(t, scan.points())
+        u_nom = policy(t, scan, pose)
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+        if result.deadlock is not None:
+            deadlock_time = max(deadlock_time, result.deadlock.time)
+        escape_steps += bool(result.escape)
         command = np.asarray(result.u, dtype=float)
-        profile = _velocity_profile(episode.base, velocity, command, robot, dt)
+        profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
         clearances = _clearances(scene, poses[1:, :2], radius)
@@ -351,12 +379,17 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         if record:
             log.append(dict(step=step, t=t, u_nom=np.asarray(u_nom, dtype=float).tolist(), u=command.tolist(),
                             status=result.status.value, message=result.message, min_barrier=result.min_barrier,
+                            escape=result.escape, deadlock=None if result.deadlock is None else result.deadlock.time,
                             clearance=clearance, pose=(pose.x, pose.y, wrap_angle(pose.yaw)),
                             velocity=velocity.tolist()))
         if contact and not record:
             break
+    goal_distance = None
+    if episode.nominal == "goal":
+        goal_distance = math.hypot(episode.params[0] - pose.x, episode.params[1] - pose.y)
     outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
-                      statuses, step + 1, hidden_at_start(robot, scene, margin))
+                      statuses, step + 1, hidden_at_start(robot, scene, margin), deadlock_time, escape_steps,
+                      goal_distance)
     return outcome, log
 
 

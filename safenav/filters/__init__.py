@@ -12,7 +12,8 @@ name           filter
 One concept per module: ``base`` (the call template, results, statuses and reasons),
 ``defaults`` (settings derived from the robot), ``body`` (disk or footprint cover),
 ``perception`` (points, unknown region, memory), ``rows`` (constraint families), ``qp``
-(QP back-ends), ``cbf``, ``mpc/`` (config, plan model, NLP, filter), ``zones``.
+(QP back-ends), ``cbf``, ``mpc/`` (config, plan model, NLP, filter), ``zones``, ``contract``
+(:func:`check_filter`, the contract every filter meets).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from safenav import _checks
 from safenav.filters.base import BRAKING_STATUSES, FilterResult, FilterStatus, Reason, SafetyFilter
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFConfig, CBFSafetyFilter
+from safenav.filters.contract import FilterContractError, check_filter
 from safenav.filters.defaults import default_margin
 from safenav.filters.mpc import MPCConfig, MPCSafetyFilter
 from safenav.filters.qp import available_solvers
@@ -39,6 +41,7 @@ __all__ = [
     "BodyModel",
     "CBFConfig",
     "CBFSafetyFilter",
+    "FilterContractError",
     "FilterResult",
     "FilterStatus",
     "MPCConfig",
@@ -48,6 +51,7 @@ __all__ = [
     "ZonesConfig",
     "ZonesFilter",
     "available_solvers",
+    "check_filter",
     "default_margin",
     "make_filter",
 ]

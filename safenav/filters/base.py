@@ -39,6 +39,7 @@ from safenav.scan import LaserScan
 __all__ = [
     "BRAKING_STATUSES",
     "MAX_DT",
+    "Deadlock",
     "FilterResult",
     "FilterStatus",
     "Reason",
@@ -52,6 +53,10 @@ MAX_DT = 1.0
 LATE_TOLERANCE = 0.05
 #: A scan stamped this far in the future [s] means the clocks disagree.
 FUTURE_TOLERANCE = 1e-3
+#: A nominal below this fraction of the velocity limits does not ask to move.
+STILL = 0.05
+#: Commands keeping less than this share of the nominal's progress count as stalled.
+STALL_PROGRESS = 0.1
 
 
 class FilterStatus(enum.Enum):
@@ -124,6 +129,40 @@ class Reason:
         return f"{self.family}: {self.detail}{where}"
 
 
+@dataclass(frozen=True)
+class Deadlock:
+    """The nominal asks to move and the filtered command has made (almost) no progress along it.
+
+    Attributes:
+        time: how long the commands have made less than ``stall_progress`` of the nominal's
+            progress, while the nominal asked to move [s].
+        point: the obstacle point behind the binding constraint, base frame [m] (``None`` when
+            an unknown region or a limit binds).
+        family: the constraint family that binds (see :class:`Reason`).
+    """
+
+    time: float
+    point: tuple[float, float] | None
+    family: str
+
+    def __str__(self) -> str:
+        where = "" if self.point is None else f" at ({self.point[0]:.2f}, {self.point[1]:.2f}) m"
+        return f"deadlocked for {self.time:.1f} s by a {self.family} constraint{where}"
+
+
+def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
+    """How much of the nominal's motion ``u`` keeps, in ``[-inf, 1]`` (1 for ``u = u_nom``).
+
+    Commands are compared as fractions of the velocity limits ``scale``; the progress is the
+    projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
+    """
+    nominal = u_nom / scale
+    size = float(nominal @ nominal)
+    if size <= 0.0:
+        return 1.0
+    return min(float((u / scale) @ nominal) / size, 1.0)
+
+
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """A read-only float copy of ``array`` (arrays already read-only float are kept)."""
     if isinstance(array, np.ndarray) and not array.flags.writeable and array.dtype == np.float64:
@@ -162,6 +201,10 @@ class FilterResult:
             current base frame, for predictive filters; ``None`` otherwise.
         warnings: conditions that do not change the command but void part of the guarantee
             (e.g. the base does not follow the model), for logs.
+        deadlock: set when the nominal has asked to move for ``deadlock_time`` without the
+            commands making progress along it (see :class:`Deadlock`).
+        escape: what an escape wrapper is doing instead of the nominal (empty when it is not;
+            see :class:`~safenav.filters.escape.Escape`).
     """
 
     u: np.ndarray
@@ -181,6 +224,8 @@ class FilterResult:
     period: float = math.nan
     plan: np.ndarray | None = None
     warnings: tuple[str, ...] = ()
+    deadlock: Deadlock | None = None
+    escape: str = ""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u", _frozen(self.u, (2,)))
@@ -216,6 +261,10 @@ class FilterResult:
                 f" from u_nom=({self.u_nom[0]:.3f}, {self.u_nom[1]:.3f})")
         if self.message:
             line += f"; {self.message}"
+        if self.deadlock is not None:
+            line += f"; {self.deadlock}"
+        if self.escape:
+            line += f"; escape: {self.escape}"
         if math.isfinite(self.min_barrier):
             line += f"; barrier {self.min_barrier:.3f} m"
         for warning in self.warnings:
@@ -267,6 +316,9 @@ class SafetyFilter(abc.ABC):
         memory_capacity: largest number of remembered points (0 disables the memory).
         time_constant: the base's first-order lag the filter allows for [s] (0: a base that
             reaches each command within the period).
+        deadlock_time: how long the commands may make less than ``stall_progress`` of the
+            nominal's progress, while the nominal asks to move, before the result reports a
+            :class:`Deadlock` [s].
     """
 
     name = "filter"
@@ -275,7 +327,7 @@ class SafetyFilter(abc.ABC):
     def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None, scan_timeout: float = 0.5,
                  compensate_latency: bool = True, max_gap: float = math.radians(5.0),
                  side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
-                 memory_capacity: int = 4000, time_constant: float = 0.0) -> None:
+                 memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
         self.robot = robot
@@ -286,6 +338,8 @@ class SafetyFilter(abc.ABC):
         self.max_gap = _checks.number("max_gap", max_gap, low=0.0, high=2.0 * math.pi)
         self.side_tolerance = _checks.number("side_tolerance", side_tolerance, low=0.0, high=0.5 * math.pi)
         self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
+        self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
+        self._stalled = 0.0
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
         if memory_range is None:
             speed = max(robot.v_max, -robot.v_min)
@@ -333,6 +387,7 @@ class SafetyFilter(abc.ABC):
         self._last_velocity = None
         self._last_command = np.zeros(2)
         self._called = False
+        self._stalled = 0.0
         self._on_reset()
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -382,10 +437,26 @@ class SafetyFilter(abc.ABC):
         self._carry(period if period is not None else self.dt, current, pose)
         result = self._screened(nominal, scans, current, scan_age, now, period,
                                 "; ".join(note for note in (clock_note, base_note) if note))
+        result = self._watch_progress(result)
         self._last_command = np.array(result.u, dtype=float)
         self._called = True
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
+
+    def _watch_progress(self, result: FilterResult) -> FilterResult:
+        """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""
+        scale = self.robot.upper
+        wants = bool(np.all(np.isfinite(result.u_nom))) and float(np.max(np.abs(result.u_nom) / scale)) > STILL
+        if not wants or progress(result.u, result.u_nom, scale) >= STALL_PROGRESS:
+            self._stalled = 0.0
+            return result
+        self._stalled += result.period if math.isfinite(result.period) else self.dt
+        if self._stalled < self.deadlock_time - 1e-9:
+            return result
+        reason = result.reason
+        deadlock = Deadlock(self._stalled, None if reason is None else reason.point,
+                            "limits" if reason is None else reason.family)
+        return _replace(result, deadlock=deadlock)
 
     def _match(self, scans: tuple[LaserScan, ...]) -> tuple[LaserScan, ...]:
         """The scans in the robot's base frame (the robot's lidar mount for scans without one)."""
@@ -477,6 +548,9 @@ class SafetyFilter(abc.ABC):
         view = self._observe(scans)
         result = self._filter(nominal, view, current, held)
         self._remember(view)
+        if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
+            return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
+                               f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
         extras: dict[str, Any] = dict(period=held)
         if warnings or result.warnings:
             extras["warnings"] = result.warnings + warnings

@@ -263,13 +263,23 @@ class CBFSafetyFilter(SafetyFilter):
         robot, body = self.robot, self.body
         lower, upper = robot.velocity_bounds(velocity, period if velocity is not None else None)
         kappa = 0.5 * robot.omega_max * period
-        geo = families.geometry(view.points, view.uncertainty, body.centres, body.radii, self.lookahead,
-                                self.margin, kappa)
+        time_constant = self.time_constant if velocity is not None else 0.0
+        reaction = reaction_time(period, time_constant)
+        points, uncertainty = view.points, view.uncertainty
+        if cut and points.shape[0]:
+            # Before any trigonometry: a point farther from the base than the reach of every row plus the
+            # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
+            control = np.hypot(body.centres[:, 0] + self.lookahead, body.centres[:, 1])
+            distance = np.hypot(points[:, 0], points[:, 1])
+            radius = body.radii + self.lookahead + self.margin
+            ceiling = float(np.min(distance - uncertainty)) + float(np.max(control - radius))
+            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction)
+            near = distance - uncertainty <= reach + float(np.max(control + radius))
+            points, uncertainty = points[near], uncertainty[near]
+        geo = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead, self.margin, kappa)
         disks = body.n_disks
         per_point = geo.barrier.reshape(-1, disks).min(axis=1) if geo.barrier.size else np.empty(0)
         min_barrier = float(per_point.min()) if per_point.size else math.inf
-        time_constant = self.time_constant if velocity is not None else 0.0
-        reaction = reaction_time(period, time_constant)
         if cut and geo.barrier.size:
             keep = geo.barrier <= self._binding_reach(lower, upper, velocity, min_barrier, period, reaction)
             geo = families.Geometry(*(array[keep] for array in geo))
@@ -289,7 +299,7 @@ class CBFSafetyFilter(SafetyFilter):
         rows = families.stack(obstacle, hard)
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
-        return _Problem(rows, view.points, per_point, min_barrier, np.concatenate((lower, t_low)),
+        return _Problem(rows, points, per_point, min_barrier, np.concatenate((lower, t_low)),
                         np.concatenate((upper, t_high)), velocity, (lower, upper))
 
     def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,

@@ -161,6 +161,8 @@ class _Layout:
     beams: tuple[np.ndarray, ...]
     blind_forward: bool
     blind_backward: bool
+    clear: Frontier
+    """The answer when every beam of every source is informative (it depends on the layout only)."""
 
 
 def _layout_key(scan: LaserScan) -> tuple[float, float, int, float, float, float]:
@@ -201,7 +203,8 @@ def _layout(keys: tuple[tuple[float, float, int, float, float, float], ...], bod
     backward = bool(np.any(blind & (normals[:, 0] < -threshold) & ~comes_into_view(-1.0)))
     for array in beams:
         array.flags.writeable = False
-    return _Layout(beams, forward, backward)
+    none = np.empty((0, 2))
+    return _Layout(beams, forward, backward, Frontier(none, none, forward, backward, False, False))
 
 
 def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float, side_tolerance: float
@@ -218,6 +221,8 @@ def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float
     outline = body.outline
     layout = _layout(tuple(_layout_key(scan) for scan in scans), outline.tobytes() if outline is not None else b"",
                      float(body.radii[0]) if outline is None else 0.0, side_tolerance, body.reach)
+    if all(scan.n_informative == scan.n_beams for scan in scans):
+        return layout.clear
     points, normals = body.boundary()
     covered = np.zeros(len(points), dtype=bool)
     in_view = np.zeros(len(points), dtype=bool)

@@ -47,7 +47,8 @@ __all__ = [
 FAMILIES = ("barrier", "braking", "sweep", "gap", "blind", "abs")
 """Row family names, in the order :func:`stack` keeps them."""
 HARD_FAMILIES = frozenset({"gap", "blind", "abs"})
-"""Families that slack never relaxes."""
+"""Families that slack never relaxes (the last ones of :data:`FAMILIES`)."""
+_FIRST_HARD = min(FAMILIES.index(name) for name in HARD_FAMILIES)
 
 
 class Rows(NamedTuple):
@@ -65,7 +66,7 @@ class Rows(NamedTuple):
     @property
     def hard(self) -> np.ndarray:
         """``(k,)`` mask of the rows slack may never relax."""
-        return np.isin(self.family, [FAMILIES.index(name) for name in HARD_FAMILIES])
+        return self.family >= _FIRST_HARD
 
     def __len__(self) -> int:
         return int(self.h.size)

@@ -122,3 +122,16 @@ def test_one_step_beside_and_before_a_wall_equals_the_answer_with_every_point():
     assert result.status is FilterStatus.OK and reference.found
     assert result.u[0] < 0.95
     np.testing.assert_allclose(result.u, reference.x[:2], atol=1e-6)
+
+
+# ------------------------------------------------------------------ wiring: a command held longer than dt
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+@pytest.mark.parametrize("period", [0.075, 0.1, 0.2])
+def test_late_calls_with_the_time_given_are_planned_for_the_measured_period(filter_name, period):
+    # dt = 0.05 in the filter, but the scan callback runs slower; the base ramps at its limits.
+    # Before the period check the MPC hit the wall at 0.1 s and 0.075 s, the CBF at 0.2 s.
+    log = assert_safe(Episode(robot="rosbot", filter=filter_name, base="ramp_limit", dt=0.05, period=period,
+                              segments=((2.0, -3.0, 2.0, 3.0),), nominal="arc", params=(1.0, 0.0), duration=4.0))
+    assert {row["status"] for row in log} & {"late"}
