@@ -36,8 +36,8 @@ TIGHT_OPTIONS: dict[str, dict[str, float]] = {"daqp": {"primal_tol": 1e-10}, "pr
 
 #: Row count a persistent OSQP workspace starts with; it grows (set-up again) when exceeded.
 OSQP_INITIAL_CAPACITY = 64
-#: DAQP's constraint-type flag for an equality (see ``daqp.solve``).
-DAQP_EQUALITY = 5
+#: DAQP's constraint-type flags (see ``daqp.solve``): active (a warm start), at the lower bound, equality.
+DAQP_ACTIVE, DAQP_LOWER, DAQP_EQUALITY = 1, 2, 5
 
 
 class QPOutcome(NamedTuple):
@@ -49,6 +49,9 @@ class QPOutcome(NamedTuple):
     """The solver's own status word."""
     solve_time: float
     """Wall time of the solve [s]."""
+    active: np.ndarray | None = None
+    """Which constraints hold with a nonzero multiplier, simple bounds first, then the rows: 1 at
+    the upper bound, -1 at the lower bound, 0 inactive (``None`` when the back-end does not say)."""
 
 
 class QPData(NamedTuple):
@@ -57,7 +60,9 @@ class QPData(NamedTuple):
     The filters hand this to their back-end on every call; :meth:`problem` turns it into
     the equivalent :class:`qpsolvers.Problem` for inspection or for qpsolvers back-ends.
     ``h_lower`` (``None``: no lower bound, the CBF's one-sided rows) gives two-sided rows;
-    a row with ``h_lower == h`` is an equality.
+    a row with ``h_lower == h`` is an equality. ``guess`` is a warm start of the active set
+    in the encoding of :attr:`QPOutcome.active` (a solve of a similar QP); back-ends that
+    cannot use one ignore it, and it never changes the answer, only the work.
     """
 
     P: np.ndarray
@@ -67,6 +72,7 @@ class QPData(NamedTuple):
     lb: np.ndarray
     ub: np.ndarray
     h_lower: np.ndarray | None = None
+    guess: np.ndarray | None = None
 
     def one_sided(self) -> tuple[np.ndarray, np.ndarray]:
         """The rows as ``G' x <= h'`` only: each finite lower bound becomes a row ``-G x <= -h_lower``."""
@@ -76,9 +82,24 @@ class QPData(NamedTuple):
         return np.vstack((self.G, -self.G[bounded])), np.concatenate((self.h, -self.h_lower[bounded]))
 
     def problem(self) -> qpsolvers.Problem:
-        """The same QP as a :class:`qpsolvers.Problem` (two-sided rows as two one-sided ones)."""
-        G, h = self.one_sided()
-        return qpsolvers.Problem(self.P, self.q, G, h, lb=self.lb, ub=self.ub)
+        """The same QP as a :class:`qpsolvers.Problem`.
+
+        Two-sided rows become two one-sided ones, and equalities (rows or bounds with equal
+        limits) the rows ``A x = b``: active-set solvers such as quadprog fail on an equality
+        written as two opposite inequalities.
+        """
+        if self.h_lower is None and not np.any(self.lb == self.ub):
+            return qpsolvers.Problem(self.P, self.q, self.G, self.h, lb=self.lb, ub=self.ub)
+        equal_rows = np.zeros(self.h.size, dtype=bool) if self.h_lower is None else self.h_lower == self.h
+        fixed = self.lb == self.ub
+        rest = self._replace(G=self.G[~equal_rows], h=self.h[~equal_rows],
+                             h_lower=None if self.h_lower is None else self.h_lower[~equal_rows])
+        G, h = rest.one_sided()
+        A = np.vstack((self.G[equal_rows], np.eye(self.lb.size)[fixed]))
+        b = np.concatenate((self.h[equal_rows], self.lb[fixed]))
+        lb, ub = np.where(fixed, -np.inf, self.lb), np.where(fixed, np.inf, self.ub)
+        return qpsolvers.Problem(self.P, self.q, G if G.size else None, h if h.size else None,
+                                 A if A.size else None, b if b.size else None, lb=lb, ub=ub)
 
 
 class QPBackend(Protocol):
@@ -255,16 +276,20 @@ class DirectDAQP:
         row_lower = np.full(n_rows, -1e30) if qp.h_lower is None else np.maximum(qp.h_lower, -1e30)
         lower = np.concatenate((np.maximum(qp.lb, -1e30), row_lower))
         sense = np.zeros(upper.size, dtype=np.int32)
+        if qp.guess is not None:   # DAQP's flags: 1 active (warm start), 2 at the lower bound
+            sense[qp.guess != 0] = DAQP_ACTIVE
+            sense[qp.guess < 0] |= DAQP_LOWER
         sense[lower == upper] = DAQP_EQUALITY
         # DAQP takes writable C-ordered float arrays (it copies nothing); copy only what is not.
-        P, q, G = (np.require(array, np.float64, ("C", "W")) for array in (qp.P, qp.q, qp.G))
-        x, _, exitflag, _ = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
-                                        iter_limit=self.iter_limit)
+        P, q, G = (array if array.flags.writeable and array.flags.c_contiguous and array.dtype == np.float64
+                   else np.array(array, dtype=np.float64) for array in (qp.P, qp.q, qp.G))
+        x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
+                                           iter_limit=self.iter_limit)
         elapsed = time.perf_counter() - start
         # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
         if exitflag not in (1, 2) or not np.isfinite(x).all():
             return QPOutcome(None, f"exitflag {exitflag}", elapsed)
-        return QPOutcome(x, "optimal", elapsed)
+        return QPOutcome(x, "optimal", elapsed, np.sign(info["lam"]).astype(np.int8))
 
 
 def make_backend(name: str) -> QPBackend:

@@ -31,6 +31,8 @@ DEFAULT_HORIZON_TIME = 1.0
 DEFAULT_COMMANDS = 20
 #: Default compute budget of one call, as a share of the period ``dt``.
 BUDGET_FRACTION = 0.5
+#: Default point slots of the direct SQP and of the casadi solvers.
+DIRECT_POINTS, CASADI_POINTS = 256, 32
 #: casadi QP plugins the reference ``sqpmethod`` can use here, in order of preference.
 CONIC_PLUGINS = ("daqp", "qrqp", "osqp", "qpoases", "hpipm", "proxqp", "highs")
 HESSIANS = ("gauss-newton", "exact")
@@ -76,13 +78,17 @@ class MPCConfig:
         buffer: extra distance the plan aims to keep beyond the guaranteed radius [m], so that a
             base that moves differently from the model, or range noise between scans, does not
             make the next problem need slack; default ``e_act + 2 noise_std``. The plan may use
-            it at the cost ``buffer_weight`` (a narrow door), never the guaranteed radius.
-        buffer_weight: cost of using the buffer [1/m^2].
+            it at a cost (a narrow door), never the guaranteed radius.
+        buffer_cost: cost of using the whole buffer, relative to the cost of the first command
+            braking from full speed to a stop (quadratic in the share used).
         body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the
             footprint, :meth:`~safenav.filters.body.BodyModel.cover`).
         n_disks: disks of the cover.
-        n_points: obstacle-point slots ``K`` of the optimiser (each gives one row per disk and
-            knot); the plan is checked against every point in reach, and missed points are swapped in.
+        n_points: the most obstacle points the optimiser sees at once (its slots; the nearest per
+            angular bin); the plan is checked against every point in reach, and missed points are
+            swapped in. Default: 256 for the direct SQP (it only passes the rows that can bind to
+            each QP, so every point in reach usually fits), 32 for the casadi solvers (each slot is
+            a row per disk and knot of their NLP).
         solver: ``"daqp"`` (default: the direct SQP with DAQP), another QP back-end of the direct
             SQP (``"quadprog"``, ``"osqp"``, ``"qpsolvers:daqp"``, ...), ``"sqpmethod"`` (the
             reference: casadi's SQP; ``"sqpmethod:qpoases"`` picks its QP plugin), or ``"ipopt"``;
@@ -114,10 +120,10 @@ class MPCConfig:
     max_commands: int = DEFAULT_COMMANDS
     margin: float | None = None
     buffer: float | None = None
-    buffer_weight: float = 1e3
+    buffer_cost: float = 1.0
     body: str = "disk"
     n_disks: int = 3
-    n_points: int = 32
+    n_points: int | None = None
     solver: str = "daqp"
     hessian: str = "gauss-newton"
     weights: tuple[float, float] | None = None
@@ -143,10 +149,11 @@ class MPCConfig:
             _checks.number(name + "margin", self.margin, low=0.0, high=10.0)
         if self.buffer is not None:
             _checks.number(name + "buffer", self.buffer, low=0.0, high=1.0)
-        _checks.number(name + "buffer_weight", self.buffer_weight, low=0.0, high=1e9, low_open=True)
+        _checks.number(name + "buffer_cost", self.buffer_cost, low=0.0, high=1e9, low_open=True)
         _checks.choice("MPC body model", self.body, BODIES)
         _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
-        _checks.integer(name + "n_points", self.n_points, low=1, high=2000)
+        if self.n_points is not None:
+            _checks.integer(name + "n_points", self.n_points, low=1, high=2000)
         if not isinstance(self.solver, str) or not _is_known_solver(self.solver.lower()):
             raise UnknownName("MPC solver", self.solver, available_mpc_solvers(),
                               hint="QP back-ends of the direct SQP, casadi's sqpmethod (the reference), or ipopt")
@@ -175,12 +182,15 @@ class MPCConfig:
         :attr:`~safenav.filters.mpc.MPCSafetyFilter.buffer`.)
         """
         stop_time = max(max(robot.v_max, -robot.v_min) / robot.a_max, robot.omega_max / robot.alpha_max)
+        solver = self.solver.lower()
+        casadi_solver = solver == "ipopt" or solver.startswith("sqpmethod")
         return dataclasses.replace(
             self,
             horizon_time=self.horizon_time if self.horizon_time is not None else max(DEFAULT_HORIZON_TIME,
                                                                                      stop_time + dt),
             margin=self.margin if self.margin is not None else default_margin(robot),
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
-            solver=self.solver.lower(),
+            solver=solver,
+            n_points=self.n_points if self.n_points is not None else (CASADI_POINTS if casadi_solver else DIRECT_POINTS),
             budget=self.budget if self.budget is not None else BUDGET_FRACTION * dt,
         )

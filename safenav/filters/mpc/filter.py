@@ -97,8 +97,9 @@ class MPCSafetyFilter(SafetyFilter):
     lidar can always measure a point the plan keeps out. A point already nearer than ``r_d``
     (noise, a push) may not be approached further (recovery). The planner aims for ``r_d +
     buffer`` (default ``buffer = e_act + 2 noise_std``) so that the shifted previous plan
-    stays feasible; it may use the buffer at the cost ``buffer_weight`` (a door just wider
-    than the body), never ``r_d``; verification and status use ``r_d``.
+    stays feasible; it may use the buffer at a cost (``buffer_cost``: all of it costs as much as
+    braking the first command from full speed to a stop), to pass a door just wider than the
+    body, never ``r_d``; verification and status use ``r_d``.
 
     **Unknown region and memory.** As the CBF filter (:mod:`safenav.filters.perception`):
     outline samples facing a gap or a side no lidar sees forbid translating towards them over
@@ -196,42 +197,61 @@ class MPCSafetyFilter(SafetyFilter):
         self._step = np.array([robot.a_max, robot.alpha_max]) * dt
         self.speed = max(robot.v_max, -robot.v_min)
         periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))
-        self.layout = PlanLayout.blocked(periods, cfg.max_commands)
+        self.layout = PlanLayout.of(periods, cfg.max_commands)
         self.offsets = np.array(self.body.centres, dtype=float)
-        self._inflate()
-        noise = robot.lidar.noise_std
-        self.buffer = float(cfg.buffer) if cfg.buffer is not None else self.actuator_error + 2.0 * noise
+        self._inflations: dict[int, tuple[np.ndarray, np.ndarray, float, float]] = {}
+        self.inflated_radii, self.actuator_errors, self.buffer, self.soft_buffer = self._inflation(1)
         self.weights = (float(cfg.weights[0]), float(cfg.weights[1]))
-        self.cost = PlanCost(self.weights, float(cfg.tracking), float(cfg.buffer_weight), float(cfg.slack_weight))
+        # Using the whole soft buffer costs buffer_cost times the first command braking from full speed to a stop.
+        buffer_weight = float(cfg.buffer_cost) * self.weights[0] * self.speed**2 / max(self.soft_buffer, 0.01) ** 2
+        self.cost = PlanCost(self.weights, float(cfg.tracking), buffer_weight, float(cfg.slack_weight))
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
         self._commands: np.ndarray | None = None
 
-    def _inflate(self) -> None:
-        """The radius each disk's centre keeps at the knots (see the class docstring)."""
+    def _inflation(self, hold: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Each disk's guaranteed radius ``r_d``, actuator error ``e_act_d``, the buffer and the part of
+        it the plan may use, when every command is held ``hold`` periods (see the class docstring) [m].
+
+        The buffer's actuator part keeps the shifted plan feasible when the base strays from the
+        model as far as A4 allows: it is kept. The rest (twice the range noise by default) is
+        for noise between scans: a plan may use it, at a cost, where it cannot move otherwise.
+        """
+        cached = self._inflations.get(hold)
+        if cached is not None:
+            return cached
         robot, dt = self.robot, self.dt
         lever = np.hypot(self.offsets[:, 0], self.offsets[:, 1])
         chord = (self.speed + lever * robot.omega_max) * dt
         spread = max(self.model.beta, 1.0 - self.model.beta) * self.model.tracking
-        self.arc_errors = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
-        self.actuator_errors = spread * dt * dt * (robot.a_max + (self.speed * dt + lever) * robot.alpha_max)
-        radii = np.hypot(self.body.radii + self.margin + self.arc_errors + self.actuator_errors, 0.5 * chord)
+        held = hold * dt
+        arc = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
+        actuator = spread * held * held * (robot.a_max + (self.speed * held + lever) * robot.alpha_max)
+        radii = np.hypot(self.body.radii + self.margin + arc + actuator, 0.5 * chord)
         lidar = robot.lidar
         to_lidar = np.hypot(lidar.mount.x - self.offsets[:, 0], lidar.mount.y - self.offsets[:, 1])
         nearest = int(np.argmin(to_lidar))
         radii[nearest] = max(radii[nearest], lidar.range_min + to_lidar[nearest])
-        self.inflated_radii = radii
-        for array in (self.arc_errors, self.actuator_errors, self.inflated_radii):
+        setting = self.config.buffer
+        kept = float(np.max(actuator))
+        buffer = float(setting) if setting is not None else kept + 2.0 * lidar.noise_std
+        soft = max(0.0, buffer - kept)
+        for array in (radii, actuator):
             array.flags.writeable = False
+        if hold == 1:
+            arc.flags.writeable = False
+            self.arc_errors = arc
+        self._inflations[hold] = (radii, actuator, buffer, soft)
+        return radii, actuator, buffer, soft
 
     def _make_solver(self) -> PlanSolver:
         cfg = self.config
         if cfg.solver == "ipopt" or cfg.solver.startswith("sqpmethod"):
             offsets = tuple((float(x), float(y)) for x, y in self.offsets)
-            return CasadiNLP(NLPKey(self.layout.periods, self.layout.max_commands, self.n_points, offsets, self.dt,
-                                    cfg.time_constant, self.cost, cfg.solver, cfg.hessian, cfg.max_iter))
-        return DirectSQP(PlanModel(self.layout, self.model), self.offsets, self.cost, make_backend(cfg.solver),
-                         cfg.max_iter)
+            return CasadiNLP(NLPKey(self.layout.periods, self.layout.max_commands, 1, self.n_points, offsets,
+                                    self.dt, cfg.time_constant, self.cost, cfg.solver, cfg.hessian, cfg.max_iter))
+        return DirectSQP(PlanModel(self.layout.periods, self.model), self.offsets, self.cost,
+                         make_backend(cfg.solver), cfg.max_iter)
 
     @property
     def horizon(self) -> int:
@@ -285,17 +305,22 @@ class MPCSafetyFilter(SafetyFilter):
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
 
-    def _bounds(self, velocity: np.ndarray, frontier: Frontier) -> tuple[np.ndarray, np.ndarray]:
-        """Per-period command bounds ``(P, 2)``: limits, reachability, unknown space, stopped at the end."""
+    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Per-period command bounds ``(P, 2)``: limits, reachability, unknown space, stopped at the end.
+
+        With late calls commands come in blocks of ``hold`` equal ones (one call period); each block
+        may differ from the previous one by what the acceleration limits allow in ``hold`` periods.
+        """
         robot = self.robot
         # A lagging base is commanded a sequence that slews at the acceleration limits; its velocity follows.
         origin = velocity if self.model.time_constant <= 0.0 else self._last_command
-        change = np.arange(1, self.horizon + 1)[:, None] * self._step
+        blocks = np.arange(self.horizon) // hold + 1
+        change = blocks[:, None] * hold * self._step
         reach_low, reach_high = origin - change, origin + change
         # Later steps: the limits, widened only to let a base outside them brake at its limit.
         lower = np.minimum(robot.lower, reach_high)
         upper = np.maximum(robot.upper, reach_low)
-        lower[0], upper[0] = robot.velocity_bounds(origin, self.dt)
+        lower[0], upper[0] = robot.velocity_bounds(origin, self.dt * hold)
         if frontier.blocks_forward:
             upper[:, 0] = np.minimum(upper[:, 0], np.maximum(0.0, reach_low[:, 0]))
         if frontier.blocks_backward:
@@ -321,19 +346,27 @@ class MPCSafetyFilter(SafetyFilter):
         body = self.body
         points, uncertainty = view.points, view.uncertainty
         offsets = self.offsets
+        inflated, _, buffer, soft = self._inflation(hold)
         if points.shape[0]:
             now = np.hypot(points[:, None, 0] - offsets[None, :, 0], points[:, None, 1] - offsets[None, :, 1])
             min_barrier = float(np.min(now - uncertainty[:, None] - (body.radii + self.margin)[None, :]))
-            reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + self.inflated_radii))
-            keep = np.hypot(points[:, 0], points[:, 1]) <= reach + self.buffer + uncertainty
+            reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
+            keep = np.hypot(points[:, 0], points[:, 1]) <= reach + buffer + uncertainty
             points, uncertainty, now = points[keep], uncertainty[keep], now[keep]
         else:
             now = np.empty((0, offsets.shape[0]))
             min_barrier = math.inf
-        guaranteed = self.inflated_radii[None, :] + uncertainty[:, None]
-        lower, upper = self._bounds(velocity, view.frontier)
-        return MPCProblem(u_nom, velocity.copy(), points, np.minimum(guaranteed + self.buffer, now),
-                          np.minimum(guaranteed, now), lower, upper, hold, view.frontier, min_barrier,
+        guaranteed = inflated[None, :] + uncertainty[:, None]
+        # The planner also keeps the growth of a point's uncertainty at the next carry by the measured
+        # velocity (A5's trapezoid: half the period times the velocity change, at most the acceleration
+        # limits), so that the shifted plan stays feasible once a point has left the field of view.
+        held = hold * self.dt
+        drift = 0.5 * held * held * (self.robot.a_max + np.hypot(points[:, 0], points[:, 1]) * self.robot.alpha_max)
+        floor = guaranteed + (buffer - soft) + drift[:, None]
+        lower, upper = self._bounds(velocity, view.frontier, hold)
+        return MPCProblem(u_nom, velocity.copy(), points, np.minimum(floor + soft, now), np.minimum(guaranteed, now),
+                          np.minimum(floor, now), lower, upper,
+                          PlanLayout.of(self.horizon, self.layout.max_commands, hold), view.frontier, min_barrier,
                           body.clearance(view.points))
 
     # ------------------------------------------------------------------ plans
@@ -350,9 +383,8 @@ class MPCSafetyFilter(SafetyFilter):
         """How far ``commands`` ``(P, 2)`` are from satisfying every constraint of ``problem``."""
         commands = np.asarray(commands, dtype=float).reshape(self.horizon, 2)
         limits = max(float(np.max(problem.lower - commands)), float(np.max(commands - problem.upper)))
-        limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - self._step)))
-        if problem.hold > 1:
-            limits = max(limits, float(np.max(np.abs(commands[: problem.hold] - commands[0]))))
+        steps = problem.layout.period_changes[:, None] * self._step
+        limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - steps)))
         knots, poses, velocities = self.model.knot_poses(commands, problem.velocity)
         gaps = distances(disk_centres(knots, self.offsets), problem.points)
         if gaps.size == 0:
@@ -366,9 +398,26 @@ class MPCSafetyFilter(SafetyFilter):
         deviation = (np.asarray(commands, dtype=float).reshape(self.horizon, 2) - target) ** 2 @ np.array(self.weights)
         return float(self.cost.period_weights(self.horizon) @ deviation)
 
+    def _realigned(self, shifted: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        """A warm start from the last plan: shifted in time, except its final braking, which stays put.
+
+        The optimum tracks the nominal as long as it can still stop by the end of the horizon,
+        so from one call to the next its final braking (where each command is as far from zero
+        as stopping at the end allows) stays aligned with the end of the horizon, not with time;
+        the plain shifted plan would stop one period early (one more SQP iteration).
+        """
+        warm = shifted.copy()
+        stopping = (self.horizon - 1 - np.arange(self.horizon))[:, None] * self._step
+        on_profile = np.abs(previous) >= stopping - 1e-9
+        for axis in range(2):
+            outside = np.flatnonzero(~on_profile[:, axis])
+            tail = outside[-1] + 1 if outside.size else 0
+            warm[tail:, axis] = previous[tail:, axis]
+        return warm
+
     def _braking(self, first: np.ndarray, hold: int = 1) -> np.ndarray:
-        """``first`` for ``hold`` periods, then every command nearer zero by the acceleration limit: ``(P, 2)``."""
-        steps = np.maximum(np.arange(self.horizon) - (hold - 1), 0)[:, None] * self._step
+        """``first``, then every block of ``hold`` commands nearer zero by the acceleration limit: ``(P, 2)``."""
+        steps = (np.arange(self.horizon) // hold)[:, None] * hold * self._step
         return np.sign(first) * np.maximum(np.abs(first) - steps, 0.0)
 
     @staticmethod
@@ -387,6 +436,7 @@ class MPCSafetyFilter(SafetyFilter):
         if self._commands is not None:
             shift = min(hold, self.horizon)
             shifted = np.vstack((self._commands[shift:], np.zeros((shift, 2))))
+            previous = self._commands
         self._commands = None
         frontier = view.frontier
         if (frontier.blocks_forward and problem.lower[0, 0] > 0.0) or (
@@ -403,7 +453,8 @@ class MPCSafetyFilter(SafetyFilter):
             self._commands = candidate
             return self._result(problem, candidate, check, details, used=np.empty(0, dtype=np.intp),
                                 solve_time=0.0, solver="")
-        warm = np.clip(shifted if shifted is not None else candidate, problem.lower, problem.upper)
+        warm = np.clip(candidate if shifted is None else self._realigned(shifted, previous), problem.lower,
+                       problem.upper)
         outcome = self._solve(problem, warm, candidate, deadline)
         if outcome.abandoned:
             spent = self.clock() - (deadline - self.budget)
@@ -487,11 +538,17 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _nlp(self, problem: MPCProblem, used: np.ndarray, start: np.ndarray) -> PlanNLP:
         """The NLP of ``problem`` with the points ``used`` in the slots, starting from the plan ``start``."""
-        radii, guaranteed = problem.radii[used], problem.guaranteed[used]
-        relief = np.clip((radii - guaranteed) / self.buffer, 0.0, 1.0) if self.buffer > 0.0 else np.zeros_like(radii)
+        soft = self._inflation(problem.hold)[3]
         return PlanNLP(problem.velocity, np.clip(problem.u_nom, self.robot.lower, self.robot.upper),
-                       problem.points[used], radii, relief, problem.lower, problem.upper, problem.hold, self._step,
-                       self.buffer, self.layout.sample(start))
+                       problem.points[used], problem.radii[used], self._relief(problem)[used], problem.lower,
+                       problem.upper, problem.layout, self._step, soft, problem.layout.sample(start))
+
+    def _relief(self, problem: MPCProblem) -> np.ndarray:
+        """``(M, D)`` the share of the soft buffer each row may use: down to :attr:`MPCProblem.floor`."""
+        soft = self._inflation(problem.hold)[3]
+        if soft <= 0.0:
+            return np.zeros_like(problem.radii)
+        return np.clip((problem.radii - problem.floor) / soft, 0.0, 1.0)
 
     def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float) -> _Solved:
         """Solve the NLP; swap points the answer violates into the slots and solve again.
@@ -503,8 +560,7 @@ class MPCSafetyFilter(SafetyFilter):
         used = self._select(problem, [warm, candidate])
         commands = warm
         solve_time = 0.0
-        relief = np.clip((problem.radii - problem.guaranteed) / self.buffer, 0.0, 1.0) if self.buffer > 0.0 else \
-            np.zeros_like(problem.radii)
+        relief = self._relief(problem)
         # Smallest row value each point has had in any answer so far: a point that was ever near a
         # violation keeps its slot, so the working set grows monotonically until the slots run out.
         priority = np.full(problem.points.shape[0], np.inf)
@@ -515,7 +571,7 @@ class MPCSafetyFilter(SafetyFilter):
                 return _Solved(None, None, used, solve_time, "deadline", abandoned=True)
             if outcome.knots is None or not np.all(np.isfinite(outcome.knots)):
                 return _Solved(None, None, used, solve_time, f"solver {self.backend.name} failed ({outcome.status})")
-            commands = self._repair(self.layout.expand(outcome.knots), problem)
+            commands = self._repair(problem.layout.expand(outcome.knots), problem)
             check = self.check_plan(problem, commands)
             if check.limits > BOUND_TOLERANCE:
                 return _Solved(None, None, used, solve_time,
@@ -549,11 +605,11 @@ class MPCSafetyFilter(SafetyFilter):
         """``commands`` moved into their bounds, acceleration rows and hold (an SQP stopped at its
         iteration limit can miss a linear row by ~1e-6); the result is verified like any answer."""
         repaired = np.clip(commands, problem.lower, problem.upper)
+        steps = problem.layout.period_changes[:, None] * self._step
+        if np.all(np.abs(np.diff(repaired, axis=0)) <= steps):
+            return repaired
         for k in range(1, self.horizon):
-            if k < problem.hold:
-                repaired[k] = repaired[0]
-                continue
-            repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - self._step, repaired[k - 1] + self._step),
+            repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - steps[k - 1], repaired[k - 1] + steps[k - 1]),
                                   problem.lower[k], problem.upper[k])
         return repaired
 

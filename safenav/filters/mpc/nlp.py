@@ -4,11 +4,12 @@ Both solvers of the MPC filter optimise the same NLP (:class:`PlanNLP`, stated i
 :mod:`safenav.filters.mpc.sqp`); this module holds what casadi builds for it, once per
 problem shape:
 
-* :class:`PlanModel`: a casadi ``Function`` from the control knots' commands ``U`` and the
-  start velocity to the pose ``(x, y, yaw)`` at the end of every period (and where a lagging
-  base drifts to after the plan) and its Jacobian with respect to ``U``. Evaluated through
-  casadi's buffer interface into arrays this object owns (no conversions per call). The
-  direct SQP (:class:`~safenav.filters.mpc.sqp.DirectSQP`) calls it once per iteration.
+* :class:`PlanModel`: a casadi ``Function`` from a plan's commands and the start velocity to
+  the pose ``(x, y, yaw)`` at the end of every period (and where a lagging base drifts to
+  after the plan) and its Jacobian with respect to the commands. Evaluated through casadi's
+  buffer interface into arrays this object owns (no conversions per call). The direct SQP
+  (:class:`~safenav.filters.mpc.sqp.DirectSQP`) calls it once per iteration and maps the
+  Jacobian to the knots' commands (``u = B U``) itself, so one Function serves every layout.
 * :class:`CasadiNLP`: the whole NLP handed to casadi's ``sqpmethod`` (with any of its QP
   plugins) or Ipopt: the reference the direct SQP is checked against
   (``tests/filters/test_mpc_replay.py``), selectable with ``solver="sqpmethod"``.
@@ -40,19 +41,17 @@ def _sinc(x: casadi.SX) -> casadi.SX:
     return 1 - x2 / 6 * (1 - x2 / 20 * (1 - x2 / 42 * (1 - x2 / 72 * (1 - x2 / 110))))
 
 
-def _knot_poses(layout: PlanLayout, model: BaseModel, knots: casadi.SX, velocity: casadi.SX
-                ) -> tuple[casadi.SX, casadi.SX]:
-    """Symbolic ``(3, K)`` poses at the clearance knots and ``(2, P)`` commands of a plan.
+def _knot_poses(model: BaseModel, commands: casadi.SX, velocity: casadi.SX) -> casadi.SX:
+    """Symbolic ``(3, K)`` poses at the clearance knots of a plan of ``(2, P)`` commands.
 
-    The commands of every period are ``U B'`` (linear between the control knots); the base
-    follows them as :class:`BaseModel` says, along the exact arc of each period's mean velocity.
+    The base follows the commands as :class:`BaseModel` says, along the exact arc of each
+    period's mean velocity; with a lag, the last pose is where it drifts to after the plan.
     """
     dt, rho, beta = model.dt, model.rho, model.beta
-    commands = knots if not layout.blocked_moves else casadi.mtimes(knots, casadi.DM(layout.interpolation.T))
     x = y = yaw = 0.0
     state = velocity
     poses = []
-    for k in range(layout.periods):
+    for k in range(commands.shape[1]):
         command = commands[:, k]
         mean = command + beta * (state - command)
         half_turn = 0.5 * dt * mean[1]
@@ -64,37 +63,35 @@ def _knot_poses(layout: PlanLayout, model: BaseModel, knots: casadi.SX, velocity
     if model.time_constant > 0.0:
         drift = model.time_constant * state[0]
         poses.append(casadi.vertcat(x + drift * casadi.cos(yaw), y + drift * casadi.sin(yaw), yaw))
-    return casadi.horzcat(*poses), commands
+    return casadi.horzcat(*poses)
 
 
 @functools.lru_cache(maxsize=32)
-def _model_function(periods: int, max_commands: int, dt: float, time_constant: float) -> casadi.Function:
-    layout = PlanLayout.blocked(periods, max_commands)
+def _model_function(periods: int, dt: float, time_constant: float) -> casadi.Function:
     model = BaseModel(dt, time_constant)
-    commands = casadi.SX.sym("U", 2, layout.n_knots)
+    commands = casadi.SX.sym("u", 2, periods)
     velocity = casadi.SX.sym("velocity", 2)
-    poses, _ = _knot_poses(layout, model, commands, velocity)
-    flat = casadi.vec(poses)
+    flat = casadi.vec(_knot_poses(model, commands, velocity))
     jacobian = casadi.jacobian(flat, casadi.vec(commands))
     return casadi.Function("plan_model", [casadi.vec(commands), velocity],
-                           [casadi.densify(flat), casadi.densify(jacobian)], ["U", "velocity"], ["poses", "jacobian"])
+                           [casadi.densify(flat), casadi.densify(jacobian)], ["u", "velocity"], ["poses", "jacobian"])
 
 
 class PlanModel:
     """The knot poses of a plan and their Jacobian, from a casadi Function built once per shape.
 
     Args:
-        layout: which commands are chosen (:class:`~safenav.filters.mpc.plan.PlanLayout`).
+        periods: commands of a plan.
         model: how the base follows the commands.
     """
 
-    def __init__(self, layout: PlanLayout, model: BaseModel) -> None:
-        self.layout = layout
+    def __init__(self, periods: int, model: BaseModel) -> None:
+        self.periods = int(periods)
         self.model = model
-        self.n_poses = layout.periods + (1 if model.time_constant > 0.0 else 0)
-        function = _model_function(layout.periods, layout.max_commands, model.dt, model.time_constant)
+        self.n_poses = self.periods + (1 if model.time_constant > 0.0 else 0)
+        function = _model_function(self.periods, model.dt, model.time_constant)
         self._buffer, self._evaluate = function.buffer()
-        n_vars = 2 * layout.n_knots
+        n_vars = 2 * self.periods
         self._commands = np.zeros(n_vars)
         self._velocity = np.zeros(2)
         self._poses = np.zeros(3 * self.n_poses)
@@ -104,23 +101,23 @@ class PlanModel:
         for index, array in enumerate((self._poses, self._jacobian)):
             self._buffer.set_res(index, memoryview(array))
 
-    def __call__(self, knot_commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Poses ``(K, 3)`` at the clearance knots and their Jacobian ``(K, 3, 2n)`` with respect to
-        the knots' commands ``(n, 2)`` (flattened knot by knot: ``v_0, omega_0, v_1, ...``)."""
-        self._commands[:] = np.asarray(knot_commands, dtype=float).ravel()
+    def __call__(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Poses ``(K, 3)`` at the clearance knots and their Jacobian ``(K, 3, 2P)`` with respect to
+        the commands ``(P, 2)`` (flattened period by period: ``v_0, omega_0, v_1, ...``)."""
+        self._commands[:] = np.asarray(commands, dtype=float).ravel()
         self._velocity[:] = velocity
         self._evaluate()
         n_vars = self._commands.size
         poses = self._poses.reshape(self.n_poses, 3).copy()
-        # casadi stores the Jacobian column-major: (3K rows, 2n columns).
+        # casadi stores the Jacobian column-major: (3K rows, 2P columns).
         jacobian = self._jacobian.reshape(n_vars, self.n_poses, 3).transpose(1, 2, 0).copy()
         return poses, jacobian
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"layout": self.layout, "model": self.model}
+        return {"periods": self.periods, "model": self.model}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["layout"], state["model"])  # type: ignore[misc]
+        self.__init__(state["periods"], state["model"])  # type: ignore[misc]
 
 
 class NLPKey(NamedTuple):
@@ -128,6 +125,7 @@ class NLPKey(NamedTuple):
 
     periods: int
     max_commands: int
+    hold: int
     n_points: int
     offsets: tuple[tuple[float, float], ...]
     dt: float
@@ -150,7 +148,7 @@ def build_nlp(key: NLPKey) -> casadi.Function:
     clearance rows per knot, knot-major, ``(||c - o||^2 - r^2) / (2 r) + relief s_b + s_h >= 0``
     (about ``||c - o|| - r``).
     """
-    layout = PlanLayout.blocked(key.periods, key.max_commands)
+    layout = PlanLayout.of(key.periods, key.max_commands, key.hold)
     model = BaseModel(key.dt, key.time_constant)
     n_knots, n_points = layout.n_knots, key.n_points
     offsets = np.asarray(key.offsets, dtype=float).reshape(-1, 2)
@@ -164,13 +162,14 @@ def build_nlp(key: NLPKey) -> casadi.Function:
     radii = casadi.SX.sym("radii", n_points, n_disks)
     relief = casadi.SX.sym("relief", n_points, n_disks)
     parameters = casadi.vertcat(velocity, target, casadi.vec(points), casadi.vec(radii), casadi.vec(relief))
-    poses, commands = _knot_poses(layout, model, knots, velocity)
+    commands = knots if layout.identity else casadi.mtimes(knots, casadi.DM(layout.interpolation.T))
+    poses = _knot_poses(model, commands, velocity)
     cost_weights = key.cost.period_weights(layout.periods)
     w_v, w_omega = key.cost.weights
     cost = casadi.dot(cost_weights, w_v * (commands[0, :].T - target[0]) ** 2
                       + w_omega * (commands[1, :].T - target[1]) ** 2)
     cost += key.cost.buffer_weight * buffer_slack**2 + key.cost.slack_weight * (slack + slack**2)
-    interpolated = [k for k in range(layout.periods) if k not in set(layout.knots.tolist())]
+    interpolated = _interpolated(layout).tolist()
     rows = [knots[:, 1:] - knots[:, :-1], commands[:, interpolated]]
     scale = 0.5 / casadi.fmax(radii, MIN_ROW_SCALE)
     for k in range(poses.shape[1]):
@@ -216,22 +215,27 @@ def build_nlp(key: NLPKey) -> casadi.Function:
     return casadi.nlpsol("mpc_reference", "sqpmethod", nlp, options)
 
 
+def _interpolated(layout: PlanLayout) -> np.ndarray:
+    """The periods whose commands an interpolated layout gives bound rows of their own."""
+    return np.setdiff1d(np.arange(layout.periods), layout.knots) if layout.interpolated else np.empty(0, dtype=int)
+
+
 class CasadiNLP:
     """The reference solver: the whole NLP in casadi's ``sqpmethod`` (any QP plugin) or Ipopt.
 
     Slower than :class:`~safenav.filters.mpc.sqp.DirectSQP` (casadi's QP interface costs
     about 0.9 ms per SQP iteration here) and not interruptible: the deadline is checked
-    before the solve only. Kept to check the direct SQP against.
+    before the solve only. One NLP is built per layout, when first needed (a late call's
+    layout costs a build). Kept to check the direct SQP against.
 
     Args:
-        key: the problem shape and the solver settings.
+        key: the problem shape and the solver settings (its ``hold`` is replaced by each layout's).
     """
 
     def __init__(self, key: NLPKey) -> None:
         self.key = key
         self.name = "ipopt" if key.solver == "ipopt" else f"sqpmethod+{key.solver.partition(':')[2] or 'daqp'}"
-        self._solver = build_nlp(key)
-        self._layout = PlanLayout.blocked(key.periods, key.max_commands)
+        build_nlp(key)
 
     def solve(self, nlp: PlanNLP, deadline: float = float("inf"), clock: Any = time.perf_counter) -> NLPOutcome:
         """Solve ``nlp`` from its start; ``knots`` is ``None`` when casadi raised (the caller verifies)."""
@@ -240,7 +244,9 @@ class CasadiNLP:
         start = clock()
         if start > deadline:
             return NLPOutcome(None, 0.0, 0.0, "deadline", 0, 0.0, abandoned=True)
-        key, layout = self.key, self._layout
+        layout = nlp.layout
+        key = self.key._replace(hold=layout.hold)
+        solver = build_nlp(key)
         n_points, n_disks = key.n_points, len(key.offsets)
         used = nlp.points.shape[0]
         if used > n_points:
@@ -251,22 +257,22 @@ class CasadiNLP:
         points[:used], radii[:used], relief[:used] = nlp.points, nlp.radii, nlp.relief
         parameters = np.concatenate((nlp.velocity, nlp.target, points.ravel(), radii.ravel(order="F"),
                                      relief.ravel(order="F")))
-        lower = np.concatenate((layout.sample(nlp.lower).ravel(), (0.0, 0.0)))
-        upper = np.concatenate((layout.sample(nlp.upper).ravel(), (nlp.buffer, np.inf)))
-        change = knot_changes(layout, nlp.step, nlp.hold).ravel()
-        interpolated = np.setdiff1d(np.arange(layout.periods), layout.knots)
+        knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
+        lower = np.concatenate((knots_lower.ravel(), (0.0, 0.0)))
+        upper = np.concatenate((knots_upper.ravel(), (nlp.buffer, np.inf)))
+        change = knot_changes(layout, nlp.step).ravel()
+        interpolated = _interpolated(layout)
         n_clearance = n_points * n_disks * (layout.periods + (1 if key.time_constant > 0.0 else 0))
         lbg = np.concatenate((-change, nlp.lower[interpolated].ravel(), np.zeros(n_clearance)))
         ubg = np.concatenate((change, nlp.upper[interpolated].ravel(), np.full(n_clearance, np.inf)))
-        x0 = np.concatenate((np.clip(nlp.start, layout.sample(nlp.lower), layout.sample(nlp.upper)).ravel(),
-                             (0.0, 0.0)))
+        x0 = np.concatenate((np.clip(nlp.start, knots_lower, knots_upper).ravel(), (0.0, 0.0)))
         try:
-            result = self._solver(x0=x0, p=parameters, lbx=lower, ubx=upper, lbg=lbg, ubg=ubg)
+            result = solver(x0=x0, p=parameters, lbx=lower, ubx=upper, lbg=lbg, ubg=ubg)
         except RuntimeError as error:  # casadi raises RuntimeError for evaluation errors
             return NLPOutcome(None, 0.0, 0.0, f"error: {error}", 0, clock() - start)
         elapsed = clock() - start
         try:
-            stats = self._solver.stats()
+            stats = solver.stats()
         except RuntimeError:  # some plugins leave no statistics behind after a failure
             stats = {}
         x = np.asarray(result["x"], dtype=float).ravel()

@@ -2,13 +2,14 @@
 
 A plan is ``P`` commands ``u_0..u_{P-1}``, one per control period ``dt``, covering the
 horizon (given in seconds). The optimiser does not choose every command: it chooses the
-commands ``U_j`` at ``n <= P`` *control knots* ``k_j`` (:class:`PlanLayout`) and the
-commands in between are linearly interpolated (move blocking). Interpolation keeps the full
-braking authority: a change of at most ``a_max dt`` per period between neighbouring control
-knots ``k`` periods apart is ``|U_{j+1} - U_j| <= k a_max dt``. Clearance is still required
-at the end of *every* period, so the argument that covers the motion between two
-clearance knots (:class:`~safenav.filters.mpc.MPCSafetyFilter`) is the one-period argument
-whatever the number of control knots.
+commands ``U_j`` of ``n <= P`` *knots* (:class:`PlanLayout`): with a short ``dt`` the
+commands between knots are linearly interpolated (move blocking, which keeps the full
+braking authority: a change of at most ``a_max dt`` per period between knots ``k`` periods
+apart is ``|U_{j+1} - U_j| <= k a_max dt``); when calls come late, every command is held
+for the call period (blocks of equal commands). Clearance is still required at the end of
+*every* period, so the argument that covers the motion between two clearance knots
+(:class:`~safenav.filters.mpc.MPCSafetyFilter`) is the one-period argument whatever the
+number of knots.
 
 The base's velocity ``w`` follows the commands as a first-order lag of time constant
 ``tau`` (:class:`BaseModel`); ``tau = 0`` is a base that reaches each command within the
@@ -39,8 +40,7 @@ __all__ = ["FINE_KNOTS", "BaseModel", "MPCProblem", "PlanCheck", "PlanLayout", "
 
 #: Smallest radius the clearance rows are scaled by [m] (a point at the base origin has radius 0).
 MIN_ROW_SCALE = 1e-3
-#: With move blocking, the first control knots stay one period apart (a late call holds its first
-#: command for several periods exactly, and the near future keeps its resolution).
+#: With move blocking, the first knots stay one period apart (the near future keeps its resolution).
 FINE_KNOTS = 5
 
 
@@ -53,64 +53,100 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 class PlanLayout:
     """Which commands of a plan the optimiser chooses, and how the others follow.
 
+    Two kinds, by the call period (``hold``, in periods ``dt``, see :meth:`of`):
+
+    * ``hold = 1`` (calls every ``dt``): every period is a knot when ``periods <= max_commands``;
+      else the first :data:`FINE_KNOTS` periods, then knots spread evenly to the last period,
+      with the commands in between *linearly interpolated* (move blocking that keeps the full
+      braking authority: a knot-to-knot change of ``k`` periods may be ``k (a_max, alpha_max) dt``).
+    * ``hold >= 2`` (late calls: each command is held for ``hold`` periods): *blocks* of
+      ``hold`` equal commands, one knot per block; consecutive blocks differ by at most what the
+      acceleration limits allow in ``hold`` periods.
+
     Attributes:
         periods: ``P``, the commands of a plan (one per period).
-        max_commands: the most commands the optimiser chooses.
-        knots: ``(n,)`` the periods ``k_0 = 0 < ... < k_{n-1} = P - 1`` whose commands are chosen.
-        interpolation: ``(P, n)`` the matrix ``B`` with ``u = B U`` (linear between knots).
+        max_commands: the most knots of a ``hold = 1`` layout.
+        hold: periods each command is held (1: a new command every period).
+        knots: ``(n,)`` the first period of each knot's command (``k_0 = 0``).
+        interpolation: ``(P, n)`` the matrix ``B`` with ``u = B U``.
+        changes: ``(n - 1,)`` periods of acceleration each knot-to-knot change may use.
+        period_changes: ``(P - 1,)`` periods of acceleration each period-to-period change may use.
     """
 
     periods: int
     max_commands: int
+    hold: int
     knots: np.ndarray
     interpolation: np.ndarray
+    changes: np.ndarray
+    period_changes: np.ndarray
 
     @classmethod
-    def blocked(cls, periods: int, max_commands: int) -> PlanLayout:
-        """Every period a knot when ``periods <= max_commands``; else the first :data:`FINE_KNOTS`
-        periods, then knots spread evenly to the last period."""
-        return _layout(int(periods), int(max_commands))
+    def of(cls, periods: int, max_commands: int, hold: int = 1) -> PlanLayout:
+        """The layout of a plan of ``periods`` commands, each held ``hold`` periods (see the class docstring)."""
+        return _layout(int(periods), int(max_commands), int(hold))
 
     @property
     def n_knots(self) -> int:
         return int(self.knots.size)
 
     @property
-    def blocked_moves(self) -> bool:
-        """Whether some commands are interpolated (fewer knots than periods)."""
-        return self.n_knots < self.periods
+    def identity(self) -> bool:
+        """Whether every period's command is chosen (``B`` is the identity)."""
+        return self.n_knots == self.periods
 
-    @functools.cached_property
-    def spacing(self) -> np.ndarray:
-        """``(n - 1,)`` periods between neighbouring knots."""
-        return _read_only(np.diff(self.knots).astype(float))
+    @property
+    def interpolated(self) -> bool:
+        """Whether some commands are interpolated between knots (a ``hold = 1`` layout with blocking)."""
+        return self.hold == 1 and not self.identity
 
     def expand(self, knot_commands: np.ndarray) -> np.ndarray:
         """The commands of every period ``(P, 2)`` from the knots' commands ``(n, 2)``."""
         knot_commands = np.asarray(knot_commands, dtype=float).reshape(-1, 2)
-        return knot_commands.copy() if not self.blocked_moves else self.interpolation @ knot_commands
+        return knot_commands.copy() if self.identity else self.interpolation @ knot_commands
 
     def sample(self, commands: np.ndarray) -> np.ndarray:
         """The knots' commands ``(n, 2)`` of a plan given per period ``(P, 2)``."""
         return np.asarray(commands, dtype=float).reshape(-1, 2)[self.knots].copy()
 
+    def knot_bounds(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(n, 2)`` on the knots' commands from the bounds of every period ``(P, 2)``.
+
+        A block's command must satisfy the bounds of every period of its block; an interpolated
+        layout's knots their own period's (the periods in between get rows of their own where
+        the interpolation does not imply them).
+        """
+        if self.hold == 1:
+            return self.sample(lower), self.sample(upper)
+        return (np.maximum.reduceat(lower, self.knots, axis=0), np.minimum.reduceat(upper, self.knots, axis=0))
+
 
 @functools.lru_cache(maxsize=64)
-def _layout(periods: int, max_commands: int) -> PlanLayout:
-    if periods <= max_commands:
-        knots = np.arange(periods)
+def _layout(periods: int, max_commands: int, hold: int) -> PlanLayout:
+    if hold > 1:
+        knots = np.arange(0, periods, hold)
+        interpolation = np.zeros((periods, knots.size))
+        interpolation[np.arange(periods), np.arange(periods) // hold] = 1.0
+        changes = np.full(knots.size - 1, float(hold))
+        period_changes = np.where(np.arange(1, periods) % hold == 0, float(hold), 0.0)
     else:
-        fine = min(FINE_KNOTS, max_commands - 1)
-        coarse = np.rint(np.linspace(fine - 1, periods - 1, max_commands - fine + 1)).astype(int)[1:]
-        knots = np.unique(np.concatenate((np.arange(fine), coarse)))
-    interpolation = np.zeros((periods, knots.size))
-    for j in range(knots.size - 1):
-        start, stop = knots[j], knots[j + 1]
-        share = (np.arange(start, stop) - start) / (stop - start)
-        interpolation[start:stop, j] = 1.0 - share
-        interpolation[start:stop, j + 1] = share
-    interpolation[-1, -1] = 1.0
-    return PlanLayout(periods, max_commands, _read_only(knots), _read_only(interpolation))
+        if periods <= max_commands:
+            knots = np.arange(periods)
+        else:
+            fine = min(FINE_KNOTS, max_commands - 1)
+            coarse = np.rint(np.linspace(fine - 1, periods - 1, max_commands - fine + 1)).astype(int)[1:]
+            knots = np.unique(np.concatenate((np.arange(fine), coarse)))
+        interpolation = np.zeros((periods, knots.size))
+        for j in range(knots.size - 1):
+            start, stop = knots[j], knots[j + 1]
+            share = (np.arange(start, stop) - start) / (stop - start)
+            interpolation[start:stop, j] = 1.0 - share
+            interpolation[start:stop, j + 1] = share
+        interpolation[-1, -1] = 1.0
+        changes = np.diff(knots).astype(float)
+        period_changes = np.ones(periods - 1)
+    return PlanLayout(periods, max_commands, hold, *(_read_only(array) for array in (
+        knots, interpolation, changes, period_changes)))
 
 
 class BaseModel(NamedTuple):
@@ -193,18 +229,27 @@ class MPCProblem(NamedTuple):
     """``(M, D)`` distance the planner aims to keep each disk centre from each point at every knot [m]."""
     guaranteed: np.ndarray
     """``(M, D)`` distance a verified plan keeps each disk centre from each point at every knot [m]."""
+    floor: np.ndarray
+    """``(M, D)`` the nearest the planner may come by using the soft part of the buffer [m]: the
+    guaranteed radius, the buffer's actuator part and the growth of the point's uncertainty at the
+    next carry (never nearer than the point is now)."""
     lower: np.ndarray
     """``(P, 2)`` lower bounds on the commands (limits, reachability, field of view, stop at the end)."""
     upper: np.ndarray
     """``(P, 2)`` upper bounds on the commands."""
-    hold: int
-    """The first ``hold`` commands are equal (the call period is ``hold`` periods long)."""
+    layout: PlanLayout
+    """Which commands are chosen; ``layout.hold`` periods per command (the call period)."""
     frontier: Frontier
     """The part of the outline facing unknown space."""
     min_barrier: float
     """Smallest ``||c_d - o|| - (rho_d + margin) - e_o`` over every disk and point, at the current pose [m]."""
     clearance: float
     """Distance from the body to the nearest point [m]."""
+
+    @property
+    def hold(self) -> int:
+        """Periods each command is held (the call period in periods)."""
+        return self.layout.hold
 
 
 class PlanCheck(NamedTuple):

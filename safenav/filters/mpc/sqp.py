@@ -1,13 +1,13 @@
 """The MPC's NLP and its fast solver: sequential quadratic programming with a QP back-end called directly.
 
 **The NLP** (:class:`PlanNLP`), over the control knots' commands ``U`` (the commands of every
-period are ``u = B U``, :class:`~safenav.filters.mpc.plan.PlanLayout`) and two slacks::
+period are ``u = B U``: interpolated, or in blocks held for a late call's period,
+:class:`~safenav.filters.mpc.plan.PlanLayout`) and two slacks::
 
     min   sum_k c_k [w_v (v_k - v_t)^2 + w_omega (omega_k - omega_t)^2]
           + buffer_weight s_b^2 + slack_weight (s_h + s_h^2)
     s.t.  lower_k <= u_k <= upper_k                         every period k (limits, reach, unknown space, stop)
-          |U_{j+1} - U_j| <= (k_{j+1} - k_j) (a_max, alpha_max) dt    (acceleration, between knots;
-                                                            0 where a late call holds its first command)
+          |U_{j+1} - U_j| <= c_j (a_max, alpha_max) dt     (acceleration between knots, c_j periods)
           (||c_kd - o||^2 - r_od^2) / (2 r_od) + relief_od s_b + s_h >= 0   every knot k, disk d, point o
           0 <= s_b <= buffer,  s_h >= 0
 
@@ -49,9 +49,7 @@ from safenav.filters.qp import QPBackend, QPData
 __all__ = ["STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver", "knot_changes"]
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
-STEP_TOLERANCE = 1e-5
-#: Per knot and disk, the rows of the points within this much of the nearest go to the QP at once [m].
-ROW_SPREAD = 0.002
+STEP_TOLERANCE = 1e-4
 #: Rows with a larger value [m] are not even checked within a step (no step of one iteration moves
 #: a disk that far); every row is re-evaluated at the next iterate.
 CHECK_WINDOW = 1.0
@@ -103,8 +101,8 @@ class PlanNLP(NamedTuple):
     """``(P, 2)`` lower bounds of every period's command."""
     upper: np.ndarray
     """``(P, 2)`` upper bounds of every period's command."""
-    hold: int
-    """The first ``hold`` commands are equal."""
+    layout: PlanLayout
+    """Which commands are chosen (``u = B U``)."""
     step: np.ndarray
     """``(2,)`` the largest command change per period ``(a_max dt, alpha_max dt)``."""
     buffer: float
@@ -142,24 +140,25 @@ class PlanSolver(Protocol):
         """Solve ``nlp`` from ``nlp.start``; give up when ``clock()`` passes ``deadline``."""
 
 
-def knot_changes(layout: PlanLayout, step: np.ndarray, hold: int) -> np.ndarray:
-    """``(n - 1, 2)`` the largest ``|U_{j+1} - U_j|``: ``(k_{j+1} - k_j) step``, and 0 across the held periods.
+def knot_changes(layout: PlanLayout, step: np.ndarray) -> np.ndarray:
+    """``(n - 1, 2)`` the largest ``|U_{j+1} - U_j|``: the layout's periods of acceleration times ``step``."""
+    return np.outer(layout.changes, step)
 
-    Holding ``u_0 .. u_{hold-1}`` equal makes every change between consecutive periods below
-    ``hold`` zero; between two knots the changes are all ``(U_{j+1} - U_j) / (k_{j+1} - k_j)``,
-    so a segment that starts before period ``hold - 1`` is held entirely (with move blocking the
-    first command may be held a little longer than asked: never shorter).
-    """
-    change = np.outer(layout.spacing, step)
-    change[layout.knots[:-1] < hold - 1] = 0.0
-    return change
+
+class _LayoutData(NamedTuple):
+    """What the direct SQP precomputes per layout."""
+
+    hessian: np.ndarray
+    column_weights: np.ndarray
+    differences: np.ndarray
+    expansion: np.ndarray | None
 
 
 class DirectSQP:
     """Sequential quadratic programming over a :class:`~safenav.filters.qp.QPBackend` (see the module docstring).
 
     Args:
-        model: the plan model (knot poses and their Jacobian).
+        model: the plan model (knot poses and their Jacobian with respect to every period's command).
         offsets: ``(D, 2)`` the body disks' centres in the base frame [m].
         cost: the cost.
         backend: the QP solver of each step.
@@ -169,42 +168,49 @@ class DirectSQP:
     def __init__(self, model: PlanModel, offsets: np.ndarray, cost: PlanCost, backend: QPBackend,
                  max_iter: int) -> None:
         self.model = model
-        self.layout: PlanLayout = model.layout
         self.offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
         self.cost = cost
         self.qp = backend
         self.max_iter = int(max_iter)
         self.name = f"sqp+{backend.name}"
-        layout = self.layout
+        self._centred = not np.any(self.offsets)
+        self._layouts: dict[tuple[int, int, int], _LayoutData] = {}
+
+    def _prepare(self, layout: PlanLayout) -> _LayoutData:
+        """The cost's Hessian, the knot differences and ``B`` (per axis) of a layout, computed once."""
+        key = (layout.periods, layout.max_commands, layout.hold)
+        data = self._layouts.get(key)
+        if data is not None:
+            return data
         n = layout.n_knots
-        self.n_vars = 2 * n + 2
-        weights = cost.period_weights(layout.periods)
+        n_vars = 2 * n + 2
+        weights = self.cost.period_weights(layout.periods)
         interpolation = layout.interpolation
-        hessian = np.zeros((self.n_vars, self.n_vars))
-        for axis, weight in enumerate(cost.weights):
+        hessian = np.zeros((n_vars, n_vars))
+        for axis, weight in enumerate(self.cost.weights):
             hessian[axis:2 * n:2, axis:2 * n:2] = 2.0 * weight * interpolation.T @ (weights[:, None] * interpolation)
-        hessian[2 * n, 2 * n] = 2.0 * cost.buffer_weight
-        hessian[2 * n + 1, 2 * n + 1] = 2.0 * cost.slack_weight
-        self.hessian = hessian
-        self._column_weights = interpolation.T @ weights      # (n,): sum_k c_k B[k, j]
-        # Changes between neighbouring knots U_{j+1} - U_j, knot-major.
-        acceleration = np.zeros((2 * (n - 1), self.n_vars))
+        hessian[2 * n, 2 * n] = 2.0 * self.cost.buffer_weight
+        hessian[2 * n + 1, 2 * n + 1] = 2.0 * self.cost.slack_weight
+        differences = np.zeros((2 * (n - 1), n_vars))
         for j in range(n - 1):
             for axis in range(2):
-                acceleration[2 * j + axis, 2 * (j + 1) + axis] = 1.0
-                acceleration[2 * j + axis, 2 * j + axis] = -1.0
-        self._acceleration = acceleration
-        self._centred = not np.any(self.offsets)
+                differences[2 * j + axis, 2 * (j + 1) + axis] = 1.0
+                differences[2 * j + axis, 2 * j + axis] = -1.0
+        expansion = None if layout.identity else np.kron(interpolation, np.eye(2))
+        data = _LayoutData(hessian, interpolation.T @ weights, differences, expansion)
+        self._layouts[key] = data   # a handful per filter: one per call period seen
+        return data
 
-    def _linear_rows(self, nlp: PlanNLP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Rows that do not depend on the iterate: acceleration (and the held commands), interpolated bounds."""
-        layout, n_vars = self.layout, self.n_vars
-        interpolation = layout.interpolation
-        pieces = [self._acceleration]
-        change = knot_changes(layout, nlp.step, nlp.hold).ravel()
+    def _linear_rows(self, nlp: PlanNLP, data: _LayoutData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rows that do not depend on the iterate: acceleration between knots, interpolated bounds."""
+        layout = nlp.layout
+        n_vars = 2 * layout.n_knots + 2
+        pieces = [data.differences]
+        change = knot_changes(layout, nlp.step).ravel()
         lows, highs = [-change], [change]
-        if layout.blocked_moves:
-            knots_lower, knots_upper = layout.sample(nlp.lower), layout.sample(nlp.upper)
+        if layout.interpolated:
+            interpolation = layout.interpolation
+            knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
             for axis in range(2):
                 implied_low = interpolation @ knots_lower[:, axis]
                 implied_high = interpolation @ knots_upper[:, axis]
@@ -218,7 +224,7 @@ class DirectSQP:
         return np.vstack(pieces), np.concatenate(lows), np.concatenate(highs)
 
     def _centres(self, poses: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Disk centres ``(K, D, 2)`` at the knots and their Jacobian ``(K, D, 2, 2n)``."""
+        """Disk centres ``(K, D, 2)`` at the knots and their Jacobian ``(K, D, 2, m)``."""
         if self._centred:
             return poses[:, None, :2], jacobian[:, None, :2, :]
         cos, sin = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
@@ -233,35 +239,49 @@ class DirectSQP:
     def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
               clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
         start_time = clock()
-        layout, n_vars = self.layout, self.n_vars
+        layout = nlp.layout
+        data = self._prepare(layout)
         n = layout.n_knots
-        lower_bounds = np.concatenate((layout.sample(nlp.lower).ravel(), (0.0, 0.0)))
-        upper_bounds = np.concatenate((layout.sample(nlp.upper).ravel(), (nlp.buffer, np.inf)))
+        n_vars = 2 * n + 2
+        knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
+        lower_bounds = np.concatenate((knots_lower.ravel(), (0.0, 0.0)))
+        upper_bounds = np.concatenate((knots_upper.ravel(), (nlp.buffer, np.inf)))
         knots = np.clip(np.asarray(nlp.start, dtype=float).ravel(), lower_bounds[:-2], upper_bounds[:-2])
-        linear, linear_low, linear_high = self._linear_rows(nlp)
+        linear, linear_low, linear_high = self._linear_rows(nlp, data)
         gradient = np.zeros(n_vars)
         target = np.asarray(nlp.target, dtype=float)
         for axis, weight in enumerate(self.cost.weights):
-            gradient[axis:2 * n:2] = -2.0 * weight * target[axis] * self._column_weights
+            gradient[axis:2 * n:2] = -2.0 * weight * target[axis] * data.column_weights
         gradient[-1] = self.cost.slack_weight
         radii = np.maximum(nlp.radii, MIN_ROW_SCALE)[:, None, :]            # (M, 1, D)
         shape = (nlp.points.shape[0], self.model.n_poses, self.offsets.shape[0])
         relief = np.broadcast_to(nlp.relief[:, None, :], shape)
-        active = np.zeros(shape, dtype=bool)
+        n_fixed = n_vars + linear.shape[0]
+        # Which rows were active at the last answer: the next QP starts from them (a warm start of
+        # the active set, kept per row by its point, knot and disk).
+        row_state = np.zeros(shape, dtype=np.int8)
+        fixed_state: np.ndarray | None = None
         buffer_slack = slack = 0.0
         status = "max_iter"
         iterations = 0
         for iterations in range(1, self.max_iter + 1):  # noqa: B007 - reported after the loop
             if clock() > deadline:
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True)
-            poses, jacobian = self.model(knots.reshape(n, 2), nlp.velocity)
+            commands = knots.reshape(n, 2) if data.expansion is None else layout.expand(knots.reshape(n, 2))
+            poses, jacobian = self.model(commands, nlp.velocity)
+            if data.expansion is not None:
+                jacobian = jacobian @ data.expansion                                    # d pose / d U
             centres, centre_jacobian = self._centres(poses, jacobian)
             # Row gradients are (c - o) / r times the centre's Jacobian.
             direction = (centres[None] - nlp.points[:, None, None, :]) / radii[..., None]   # (M, K, D, 2)
             values = 0.5 * radii * (np.einsum("mkdi,mkdi->mkd", direction, direction) - 1.0)
-            # Per knot and disk the nearest points, and the rows active at the previous answer, go to the
+            # Per knot and disk the nearest point, and the rows active at the previous answer, go to the
             # QP at once; any other row near enough to bind is added when the answer violates it.
-            working = (values <= values.min(axis=0) + ROW_SPREAD) | active
+            working = row_state != 0
+            if values.shape[0]:
+                nearest = np.argmin(values, axis=0)
+                knot_index, disk_index = np.indices(nearest.shape)
+                working[nearest, knot_index, disk_index] = True
             candidates = values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
@@ -273,9 +293,11 @@ class DirectSQP:
                 clearance[:, :2 * n] = -grads
                 clearance[:, 2 * n] = -relief[point, knot, disk]
                 clearance[:, 2 * n + 1] = -1.0
-                qp = QPData(self.hessian, gradient, np.vstack((linear, clearance)),
+                guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[point, knot, disk]))
+                qp = QPData(data.hessian, gradient, np.vstack((linear, clearance)),
                             np.concatenate((linear_high, values[point, knot, disk] - grads @ knots)),
-                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(point.size, -np.inf))))
+                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(point.size, -np.inf))),
+                            guess)
                 outcome = self.qp.solve(qp)
                 answer = outcome.x
                 if answer is None:
@@ -285,11 +307,16 @@ class DirectSQP:
                 moved = centre_jacobian @ (answer[:2 * n] - knots)                      # (K, D, 2)
                 linearised = values + np.einsum("mkdi,kdi->mkd", direction, moved) \
                     + relief * answer[2 * n] + answer[2 * n + 1]
+                row_state = np.zeros(shape, dtype=np.int8)
+                if outcome.active is not None:
+                    fixed_state = outcome.active[:n_fixed]
+                    row_state[point, knot, disk] = outcome.active[n_fixed:]
+                else:
+                    row_state[point, knot, disk] = linearised[point, knot, disk] < ACTIVE_TOLERANCE
                 violated = candidates & ~working & (linearised < -ROW_TOLERANCE)
                 if not violated.any():
                     break
                 working |= violated
-            active = working & (linearised < ACTIVE_TOLERANCE)
             change = float(np.max(np.abs(answer[:2 * n] - knots)))
             knots = answer[:2 * n].copy()
             buffer_slack, slack = float(answer[2 * n]), float(answer[2 * n + 1])
