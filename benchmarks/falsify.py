@@ -12,7 +12,9 @@ from seeded random starts, minimising
 with the filter's own minimum barrier as a tie-breaker. Each episode starts inside the
 assumptions: every obstacle at least ``margin`` from the body and the filter's barrier
 ``H >= 0`` on its first call. A violation is a contact, or a clearance below
-``margin - tolerance`` (1 cm). Every worst case is printed with a one-line reproduction::
+``margin - tolerance`` (1 cm). (The start must also be recoverable: a robot that starts already
+moving must get a first answer without slack; starting at rest always does.) Every worst case
+is printed with a one-line reproduction::
 
     python -m benchmarks.falsify --episodes 2000 --seed 0 --json falsify.json
     python -m benchmarks.falsify --replay '{"robot": "m2wr", ...}'
@@ -159,15 +161,17 @@ class Outcome:
     steps: int
 
     hidden_at_start: bool = False
+    start_status: str = "ok"
     deadlock_time: float = 0.0
     escape_steps: int = 0
     goal_distance: float | None = None
 
     @property
     def valid(self) -> bool:
-        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, and nothing
-        hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
-        return self.start_barrier >= 0.0 and not self.hidden_at_start
+        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, a first answer
+        that needs no slack (a robot already moving can still stop: starting at rest always can), and
+        nothing hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
+        return self.start_barrier >= 0.0 and not self.hidden_at_start and self.start_status in ("ok", "late")
 
     @property
     def violated(self) -> bool:
@@ -323,6 +327,54 @@ def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
     return best - radius
 
 
+def _segment_distances(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """Distances between segments ``a0 a1`` and ``b0 b1`` (broadcast over leading axes) [m]; 0 when they cross."""
+
+    def point_to_segment(p: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+        d = s1 - s0
+        t = np.clip(np.sum((p - s0) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-300), 0.0, 1.0)
+        return np.hypot(*np.moveaxis(p - (s0 + t[..., None] * d), -1, 0))
+
+    def cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    da, db = a1 - a0, b1 - b0
+    d1, d2 = cross(db, a0 - b0), cross(db, a1 - b0)
+    d3, d4 = cross(da, b0 - a0), cross(da, b1 - a0)
+    crossing = (d1 * d2 < 0.0) & (d3 * d4 < 0.0)
+    distance = np.minimum(np.minimum(point_to_segment(a0, b0, b1), point_to_segment(a1, b0, b1)),
+                          np.minimum(point_to_segment(b0, a0, a1), point_to_segment(b1, a0, a1)))
+    return np.where(crossing, 0.0, distance)
+
+
+def _footprint_clearances(scene: Scene, poses: np.ndarray, footprint: np.ndarray) -> np.ndarray:
+    """Distance from the footprint polygon at each pose ``(K, 3)`` to the nearest item [m] (negative: overlap)."""
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    corners = np.stack((poses[:, None, 0] + c[:, None] * footprint[None, :, 0] - s[:, None] * footprint[None, :, 1],
+                        poses[:, None, 1] + s[:, None] * footprint[None, :, 0] + c[:, None] * footprint[None, :, 1]),
+                       axis=-1)                                          # (K, V, 2)
+    edges0, edges1 = corners, np.roll(corners, -1, axis=1)
+    best = np.full(poses.shape[0], math.inf)
+    segments = scene._segment_array
+    if segments.size:
+        gaps = _segment_distances(edges0[:, :, None, :], edges1[:, :, None, :], segments[None, None, :, :2],
+                                  segments[None, None, :, 2:])
+        best = np.minimum(best, gaps.min(axis=(1, 2)))
+    circles = scene._circle_array
+    if circles.size:
+        centres = circles[None, None, :, :2]
+        gaps = _segment_distances(edges0[:, :, None, :], edges1[:, :, None, :], centres, centres)
+        best = np.minimum(best, (gaps - circles[None, None, :, 2]).min(axis=(1, 2)))
+    # A centre or a segment end inside the polygon is an overlap the edge distances miss.
+    inside = np.zeros(poses.shape[0], dtype=bool)
+    for x, y in ([*circles[:, :2].tolist(), *segments[:, :2].tolist(), *segments[:, 2:].tolist()]):
+        local_x = c * (x - poses[:, 0]) + s * (y - poses[:, 1])
+        local_y = -s * (x - poses[:, 0]) + c * (y - poses[:, 1])
+        low, high = footprint.min(axis=0), footprint.max(axis=0)
+        inside |= (local_x > low[0]) & (local_x < high[0]) & (local_y > low[1]) & (local_y < high[1])
+    return np.where(inside, np.minimum(best, 0.0) - 1e-3, best)
+
+
 def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[str, Any]]]:
     """Simulate ``episode``; returns its outcome and, with ``record``, one dict per period."""
     robot = preset(episode.robot)
@@ -341,11 +393,21 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     pose = Pose2D()
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
-    min_clearance = scene.clearance((0.0, 0.0), radius)
+    footprint = None
+    if episode.settings.get("body") == "cover" and robot.footprint is not None:
+        footprint = np.asarray(robot.footprint, dtype=float)   # the guarantee is then for the footprint
+
+    def truth(poses: np.ndarray) -> np.ndarray:
+        if footprint is None:
+            return _clearances(scene, poses[:, :2], radius)
+        return _footprint_clearances(scene, poses, footprint)
+
+    min_clearance = float(truth(np.zeros((1, 3)))[0])
     contact = min_clearance < 0.0
     violation_step = None
     statuses: dict[str, int] = {}
     start_barrier = math.nan
+    start_status = ""
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
     period = episode.period if episode.period is not None else dt
@@ -359,6 +421,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
+            start_status = result.status.value
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
         if result.deadlock is not None:
@@ -368,7 +431,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
-        clearances = _clearances(scene, poses[1:, :2], radius)
+        clearances = truth(poses[1:])
         clearance = float(clearances[-1])
         lowest = float(clearances.min())
         min_clearance = min(min_clearance, lowest)
@@ -388,8 +451,8 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     if episode.nominal == "goal":
         goal_distance = math.hypot(episode.params[0] - pose.x, episode.params[1] - pose.y)
     outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
-                      statuses, step + 1, hidden_at_start(robot, scene, margin), deadlock_time, escape_steps,
-                      goal_distance)
+                      statuses, step + 1, hidden_at_start(robot, scene, margin), start_status, deadlock_time,
+                      escape_steps, goal_distance)
     return outcome, log
 
 
@@ -543,25 +606,44 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
 # ---------------------------------------------------------------------------------------------- command line
 
 
+BODIES = ("disk", "cover")
+"""Body models searched: the circumscribed disk, and the cover of the footprint (its truth is then the polygon)."""
+
+
+def _has_body(filter_name: str, robot: str, body: str) -> bool:
+    if preset(robot).footprint is None:
+        return False
+    try:
+        make_filter(filter_name, preset(robot), 0.05, body=body)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
-           geometries: Sequence[str], nominals: Sequence[str]) -> list[dict[str, Any]]:
-    """One search per robot, filter, period and base (with and without odometry for the instant
+           geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",)
+           ) -> list[dict[str, Any]]:
+    """One search per robot, filter, body, period and base (with and without odometry for the instant
     base); the geometry and the nominal are searched inside each."""
     cells = []
     for robot in robots:
         for filter_name in filters:
-            for dt in dts:
-                for base in bases:
-                    for give_velocity in ((True, False) if base == "instant" else (True,)):
-                        cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
-                                          give_velocity=give_velocity, geometry=tuple(geometries),
-                                          nominal=tuple(nominals)))
+            for body in bodies:
+                if body != "disk" and not _has_body(filter_name, robot, body):
+                    continue    # a round robot has no footprint to cover, or the filter has no such model
+                for dt in dts:
+                    for base in bases:
+                        for give_velocity in ((True, False) if base == "instant" else (True,)):
+                            cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
+                                              give_velocity=give_velocity, geometry=tuple(geometries),
+                                              nominal=tuple(nominals),
+                                              settings={} if body == "disk" else {"body": body}))
     return cells
 
 
 def _search_cell(job: tuple[dict[str, Any], int, int, str]) -> list[Found]:
     cell, episodes, seed, optimiser = job
-    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
+    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
     return search(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)
 
 
@@ -571,7 +653,7 @@ def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found]
     summary: dict[str, dict[str, Any]] = {}
     for index, (cell, found) in enumerate(zip(cells, results, strict=True)):
         everything.extend(found)
-        key = f"{cell['robot']}/{cell['filter_name']}"
+        key = f"{cell['robot']}/{cell['filter_name']}" + ("/cover" if cell.get("settings") else "")
         entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
                                              worst_clearance_minus_margin=math.inf))
         for item in found:
@@ -582,7 +664,7 @@ def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found]
                 entry["violations"] += int(item.outcome.violated)
                 entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
                                                             item.outcome.min_clearance - item.outcome.margin)
-        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal")}
+        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal") and value != {}}
         print(f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m",
               flush=True)
     return everything, summary
@@ -598,6 +680,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--dts", nargs="+", type=float, default=[0.02, 0.05, 0.1])
     parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
     parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
+    parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     parser.add_argument("--workers", type=int, default=1, help="processes searching cells in parallel")
@@ -612,7 +695,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                   f"{row['message']}")
         print(outcome)
         return 0 if not outcome.violated else 1
-    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals)
+    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
     per_cell = max(1, args.episodes // len(cells))
     start = time.perf_counter()
     jobs = [(cell, per_cell, args.seed * 100_003 + index, args.optimiser) for index, cell in enumerate(cells)]

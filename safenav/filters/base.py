@@ -153,10 +153,10 @@ class Deadlock:
 def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
     """How much of the nominal's motion ``u`` keeps, in ``[-inf, 1]`` (1 for ``u = u_nom``).
 
-    Commands are compared as fractions of the velocity limits ``scale``; the progress is the
-    projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
+    Commands are compared as fractions of the velocity limits ``scale``, the nominal clipped to
+    them; the progress is the projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
     """
-    nominal = u_nom / scale
+    nominal = np.clip(u_nom / scale, -1.0, 1.0)
     size = float(nominal @ nominal)
     if size <= 0.0:
         return 1.0
@@ -446,7 +446,8 @@ class SafetyFilter(abc.ABC):
     def _watch_progress(self, result: FilterResult) -> FilterResult:
         """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""
         scale = self.robot.upper
-        wants = bool(np.all(np.isfinite(result.u_nom))) and float(np.max(np.abs(result.u_nom) / scale)) > STILL
+        nominal = result.u_nom
+        wants = bool(np.all(np.isfinite(nominal))) and float(np.max(np.minimum(np.abs(nominal), scale) / scale)) > STILL
         if not wants or progress(result.u, result.u_nom, scale) >= STALL_PROGRESS:
             self._stalled = 0.0
             return result
@@ -599,8 +600,13 @@ class SafetyFilter(abc.ABC):
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
-        noise = max(scan_noise(self.robot), 0.0)
-        recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
+        if frontier.complete:
+            # Every direction round the body is seen now: a remembered point is either seen again or
+            # occluded, and an occluded point cannot be the first to come within the margin.
+            recalled, uncertainty = np.empty((0, 2)), np.empty(0)
+        else:
+            noise = max(scan_noise(self.robot), 0.0)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((current, recalled)) if recalled.shape[0] else current
         return View(scans, points, np.concatenate((np.zeros(current.shape[0]), uncertainty)), current.shape[0],

@@ -74,6 +74,11 @@ class CBFConfig:
             acceleration limit). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
+        smoothing: weight of the change from the previous command in the QP's cost, relative to
+            the change from the nominal (0 = none); it damps chatter when the filter intervenes and
+            changes neither the feasible set nor the answer when ``u_nom`` is safe.
+        deadlock_time: how long the commands may stall while the nominal asks to move before the
+            result reports a deadlock [s] (see :class:`~safenav.filters.base.Deadlock`).
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first
             (see :meth:`SafetyFilter.current_frame`).
@@ -94,6 +99,8 @@ class CBFConfig:
     time_constant: float = 0.0
     memory_range: float | None = None
     memory_capacity: int = 4000
+    smoothing: float = 0.0
+    deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
 
@@ -121,6 +128,8 @@ class CBFConfig:
         if self.memory_range is not None:
             _checks.positive(name + "memory_range", self.memory_range)
         _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.number(name + "smoothing", self.smoothing, low=0.0, high=100.0)
+        _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
 
@@ -238,7 +247,8 @@ class CBFSafetyFilter(SafetyFilter):
         super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
-                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant)
+                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
+                         deadlock_time=cfg.deadlock_time)
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self.lookahead = float(cfg.lookahead)
@@ -330,6 +340,12 @@ class CBFSafetyFilter(SafetyFilter):
         P = self._P
         # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
         target = np.clip(u_nom, self.robot.lower, self.robot.upper)
+        smoothing = self.config.smoothing if self._called else 0.0
+        if smoothing > 0.0:
+            # (1/2)|u - u_nom|^2_W + (s/2)|u - u_previous|^2_W: the feasible set is unchanged.
+            P = P.copy()
+            P[:2, :2] *= 1.0 + smoothing
+            target = (target + smoothing * self._last_command) / (1.0 + smoothing)
         q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
         lower, upper = problem.lower, problem.upper
         abs_rows = families.abs_rows()

@@ -9,14 +9,16 @@ nominal by an escape command until the nominal's way is clear again:
 1. **Side, once per deadlock.** The side (left or right) of the blocking obstacle with more
    free space, measured on the scan; when both are free the side the nominal turns to.
 2. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
-   with it on the other side, holding ``follow_distance`` beyond the margin: turn towards the
-   chosen side when something is ahead, away from the obstacle's nearest point otherwise.
+   with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
+   towards the chosen side when something is ahead, or when the filter blocks the following.
 3. **Back out** when forward is blocked and the rear is seen and free.
 4. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance`` over the
    body's width plus the margins, either in the direction the robot was heading when the
    deadlock began (tracked by integrating the commands: a bug algorithm's "m-line"), or in the
    direction of the nominal's own arc over one second when it drives forward; or after
-   ``max_time`` (the next deadlock then tries the other side).
+   ``max_time`` (the next deadlock then tries the other side). "Clear" means no current or
+   remembered point in the corridor, with some lidar looking at least partly along it (the
+   escape decides progress only, never safety: its commands go through the filter).
 
 Every escape command goes through the wrapped filter exactly like a nominal would, so the
 safety guarantee is the wrapped filter's, untouched; only progress depends on the escape.
@@ -35,12 +37,15 @@ from typing import Any
 import numpy as np
 
 from safenav import _checks
-from safenav.filters.base import FilterResult, Reason, SafetyFilter, as_scans
+from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, as_scans, progress
 from safenav.geometry import wrap_angle
-from safenav.robot import as_command
+from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
 __all__ = ["Escape", "EscapeConfig"]
+
+#: How long the filter may block the escape's own commands before it turns in place instead [s].
+STALLED_ESCAPE = 0.3
 
 
 @dataclass(frozen=True)
@@ -103,9 +108,10 @@ class Escape:
         self._last_side = 0
         self._turned = 0.0      # heading change since the deadlock began [rad]
         self._since = math.inf  # time since the last escape ended [s]
+        self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
 
     @property
-    def robot(self):  # noqa: ANN201 - the wrapped filter's RobotSpec
+    def robot(self) -> RobotSpec:
         return self.inner.robot
 
     @property
@@ -128,7 +134,7 @@ class Escape:
         """Forget the escape and reset the wrapped filter."""
         self.inner.reset()
         self._side, self._elapsed, self._backing, self._last_side, self._turned = 0, 0.0, 0.0, 0, 0.0
-        self._since = math.inf
+        self._since, self._stalled = math.inf, 0.0
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
@@ -153,8 +159,11 @@ class Escape:
         held = result.period if math.isfinite(result.period) else self.dt
         self._elapsed += held
         self._turned = float(wrap_angle(self._turned + result.u[1] * held))
+        blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
+        self._stalled = self._stalled + held if blocked else 0.0
         side = "left" if self._side > 0 else "right"
-        doing = ("backing out" if self._backing > 0.0 else f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}")
+        doing = "backing out" if self._backing > 0.0 else \
+            f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
         description = f"{doing}, turning {side}, for {self._elapsed:.1f} s"
         reason = Reason("escape", f"deadlocked: {description}; command ({command[0]:.2f}, {command[1]:.2f}) sent "
                                   f"through the {self.inner.name} filter", None if result.reason is None
@@ -179,7 +188,7 @@ class Escape:
         if self._last_side and self._since <= self.config.side_memory:
             # Still round the same obstacle: keep the side, unless that escape timed out.
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
-        self._side, self._elapsed, self._backing, self._turned = side, 0.0, 0.0, 0.0
+        self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
 
     def _command(self, points: np.ndarray, scans: tuple[LaserScan, ...]) -> np.ndarray:
         """The escape command: follow the obstacle on the chosen side, or back out."""
@@ -192,7 +201,7 @@ class Escape:
                              side * 0.5 * turn])
         keep = robot.radius + self.margin + cfg.follow_distance
         ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
-        if ahead:
+        if ahead or self._stalled >= STALLED_ESCAPE:   # blocked ahead, or the filter blocks following
             if robot.v_min < 0.0 and self._rear_free(scans, keep) and self._elapsed > 2.0 * cfg.min_time:
                 self._backing = cfg.back_time
             return np.array([0.0, side * turn])          # turn towards the chosen side in place
@@ -231,7 +240,9 @@ class Escape:
         spread = math.atan2(width, cfg.clear_distance)
 
         def clear(direction: float) -> bool:
-            seen = any(scan.coverage(direction - spread, direction + spread) >= 1.0 for scan in scans)
+            # A lidar sees along it (its edge beams are enough: the corridor's sides are in the memory).
+            seen = any(scan.covers(direction) for scan in scans) or any(
+                scan.coverage(direction - spread, direction + spread) > 0.0 for scan in scans)
             return seen and not _corridor(points, direction, width, cfg.clear_distance)
 
         if clear(-self._turned):

@@ -136,6 +136,7 @@ class Frontier(NamedTuple):
         backward: some blind outline sample forbids translating backward (``v < 0``).
         gap_forward: some gap sample (beyond the side tolerance) is approached by ``v > 0``.
         gap_backward: likewise by ``v < 0``.
+        complete: every outline sample is covered by an informative beam now.
     """
 
     points: np.ndarray
@@ -144,6 +145,8 @@ class Frontier(NamedTuple):
     backward: bool
     gap_forward: bool
     gap_backward: bool
+    complete: bool = False
+    """Every outline sample is covered by an informative beam now (no blind side, no gap)."""
 
     @property
     def blocks_forward(self) -> bool:
@@ -204,7 +207,8 @@ def _layout(keys: tuple[tuple[float, float, int, float, float, float], ...], bod
     for array in beams:
         array.flags.writeable = False
     none = np.empty((0, 2))
-    return _Layout(beams, forward, backward, Frontier(none, none, forward, backward, False, False))
+    return _Layout(beams, forward, backward, Frontier(none, none, forward, backward, False, False,
+                                                      complete=not bool(blind.any())))
 
 
 def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float, side_tolerance: float
@@ -248,13 +252,16 @@ class PointMemory:
 
     After each call the memory holds the obstacle points of the call's scans within
     ``max_range`` of the base origin, plus the remembered points no scan saw again. At the
-    next call everything is moved into the new base frame by the motion since then; a
-    remembered point is dropped when a current beam covers its direction and reads farther
-    (the space is seen to be free: contradicted) or about as far (the scan shows it again),
-    and kept when the beams towards it are invalid, outside every field of view, or read
-    nearer (occluded). Each carry adds the odometry's uncertainty to the point's
-    ``uncertainty`` [m], which the filters add to their margin for that point. Beyond
-    ``capacity`` points the farthest are forgotten first.
+    next call they are moved into the new base frame by the motion since then; a remembered
+    point is dropped when a current beam covers its direction and reads farther (the space is
+    seen to be free: contradicted) or about as far (the scan shows it again), and kept when the
+    beams towards it are invalid, outside every field of view, or read nearer (occluded). Each
+    carry adds the odometry's uncertainty to the point's ``uncertainty`` [m], which the filters
+    add to their margin for that point. Beyond ``capacity`` points the farthest are forgotten
+    first.
+
+    The points stay in the frame they were stored in, and the motions are composed, so carrying
+    costs nothing until the points are recalled.
 
     Args:
         max_range: points farther than this from the base origin are forgotten [m].
@@ -264,32 +271,42 @@ class PointMemory:
     def __init__(self, max_range: float, capacity: int) -> None:
         self.max_range = float(max_range)
         self.capacity = int(capacity)
-        self.points = np.empty((0, 2))
-        self.uncertainty = np.empty(0)
+        self.clear()
 
     def __len__(self) -> int:
-        return int(self.points.shape[0])
+        return int(self._points.shape[0])
 
     def clear(self) -> None:
         """Forget everything (a reset, or a scan that cannot be trusted)."""
-        self.points = np.empty((0, 2))
-        self.uncertainty = np.empty(0)
+        self._points = np.empty((0, 2))
+        self._uncertainty = np.empty(0)
+        self._frame = Pose2D()          # the current base frame in the frame the points are stored in
+        self._error = np.zeros(2)       # odometry error bound accumulated since they were stored
+
+    @property
+    def points(self) -> np.ndarray:
+        """The remembered points in the current base frame ``(M, 2)`` [m]."""
+        return self._frame.to_local(self._points) if self._points.shape[0] else self._points
+
+    @property
+    def uncertainty(self) -> np.ndarray:
+        """Their position uncertainty ``(M,)`` [m]."""
+        if not self._points.shape[0]:
+            return self._uncertainty
+        distance = np.hypot(self._points[:, 0] - self._frame.x, self._points[:, 1] - self._frame.y)
+        return self._uncertainty + self._error[0] + distance * self._error[1]
 
     def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Move the points into the new base frame, which is at ``motion`` in the old one.
+        """Account for the motion to a new base frame, which is at ``motion`` in the old one.
 
         Args:
             motion: the pose of the new base frame in the old one [m, m, rad].
             uncertainty_rate: odometry error bound ``(e_translation [m], e_rotation [rad])`` of
                 this motion; a point at distance ``d`` gains ``e_translation + d e_rotation``.
         """
-        if self.points.shape[0] == 0:
-            return
-        distance = np.hypot(self.points[:, 0], self.points[:, 1])
-        self.points = motion.to_local(self.points)
-        self.uncertainty = self.uncertainty + uncertainty_rate[0] + distance * uncertainty_rate[1]
-        keep = np.hypot(self.points[:, 0], self.points[:, 1]) <= self.max_range + self.uncertainty
-        self.points, self.uncertainty = self.points[keep], self.uncertainty[keep]
+        if self._points.shape[0]:
+            self._frame = self._frame.compose(motion)
+            self._error += uncertainty_rate
 
     def recall(self, scans: tuple[LaserScan, ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
         """The remembered points no current beam sees again or contradicts, and their uncertainty.
@@ -299,25 +316,30 @@ class PointMemory:
             tolerance: range difference within which a reading shows a remembered point again [m]
                 (beyond it, a farther reading contradicts it); the point's own uncertainty is added.
         """
+        if self._points.shape[0] == 0:
+            return np.empty((0, 2)), np.empty(0)
         points, uncertainty = self.points, self.uncertainty
-        if points.shape[0] == 0:
-            return points, uncertainty
-        keep = np.ones(points.shape[0], dtype=bool)
+        keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
             keep &= ~_seen_again(scan, points, tolerance + uncertainty)
         return points[keep], uncertainty[keep]
 
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
-        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity."""
-        points = np.vstack((current, recalled))
-        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity.
+
+        Everything else is forgotten; the points are stored in the current base frame.
+        """
+        points = np.vstack((current, recalled)) if recalled.shape[0] else current
+        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty)) if recalled.shape[0] \
+            else np.zeros(current.shape[0])
         distance = np.hypot(points[:, 0], points[:, 1])
         keep = distance <= self.max_range
         points, uncertainty, distance = points[keep], uncertainty[keep], distance[keep]
         if points.shape[0] > self.capacity:
             order = np.argsort(distance, kind="stable")[: self.capacity]
             points, uncertainty = points[order], uncertainty[order]
-        self.points, self.uncertainty = points, uncertainty
+        self._points, self._uncertainty = points, uncertainty
+        self._frame, self._error = Pose2D(), np.zeros(2)
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
