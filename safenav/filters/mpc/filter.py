@@ -129,11 +129,11 @@ class MPCSafetyFilter(SafetyFilter):
     slots and the NLP is solved again (up to ``max_rounds`` solves).
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
-    of ``dt``), counted from the start of the optimisation and checked before every SQP
-    iteration: when it runs out the solve is abandoned (the next call starts afresh, on time)
+    of ``dt``), counted from the start of the optimisation and checked before every QP of
+    the SQP: when it runs out the solve is abandoned (the next call starts afresh, on time)
     and the filter follows the next command of its last verified plan, which ends stopped
     (status ``FALLBACK``, reason ``deadline``); without one it brakes at the acceleration
-    limits. The overrun is at most one SQP iteration.
+    limits. The overrun is at most one QP of the SQP.
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans the
     first command held for ``m`` periods (its first ``m`` commands equal) and reports ``LATE``.
@@ -365,7 +365,8 @@ class MPCSafetyFilter(SafetyFilter):
         drift = 0.5 * held * held * (self.robot.a_max + np.hypot(points[:, 0], points[:, 1]) * self.robot.alpha_max)
         floor = guaranteed + (buffer - soft) + drift[:, None]
         lower, upper = self._bounds(velocity, view.frontier, hold)
-        return MPCProblem(u_nom, velocity.copy(), points, np.minimum(floor + soft, now), np.minimum(guaranteed, now),
+        return MPCProblem(u_nom, velocity.copy(), points, uncertainty, np.minimum(floor + soft, now),
+                          np.minimum(guaranteed, now),
                           np.minimum(floor, now), lower, upper,
                           PlanLayout.of(self.horizon, self.layout.max_commands, hold), view.frontier, min_barrier,
                           body.clearance(view.points))

@@ -207,7 +207,7 @@ def build_nlp(key: NLPKey) -> casadi.Function:
         decision = nlp["x"]
         lam_f = casadi.SX.sym("lam_f")
         lam_g = casadi.SX.sym("lam_g", nlp["g"].shape[0])
-        hessian = casadi.triu(casadi.hessian(cost, decision)[0]) * lam_f
+        hessian = casadi.hessian(cost, decision)[0] * lam_f
         options["hess_lag"] = casadi.Function("gauss_newton", [decision, parameters, lam_f, lam_g], [hessian],
                                               ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"])
     else:

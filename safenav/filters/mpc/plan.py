@@ -225,6 +225,8 @@ class MPCProblem(NamedTuple):
     """The velocity the plan starts from (measured, or the last command) [m/s, rad/s]."""
     points: np.ndarray
     """``(M, 2)`` every obstacle point a plan could come near, base frame [m]."""
+    uncertainty: np.ndarray
+    """``(M,)`` each point's position uncertainty (odometry, for remembered points; else 0) [m]."""
     radii: np.ndarray
     """``(M, D)`` distance the planner aims to keep each disk centre from each point at every knot [m]."""
     guaranteed: np.ndarray

@@ -28,7 +28,8 @@ numpy and solved by a :class:`~safenav.filters.qp.QPBackend` (DAQP called direct
 default, the CBF's back-end interface), with full steps from the warm start, until the step
 is below :data:`STEP_TOLERANCE`. Only the clearance rows that can bind are passed to the QP;
 any other row its answer violates is added and the QP solved again, so each step is the
-step of the QP with every row. The deadline is checked before every iteration.
+step of the QP with every row. The deadline is checked before every QP: a solve overruns it by
+at most one QP.
 :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
 (the reference) or Ipopt.
 """
@@ -49,7 +50,7 @@ from safenav.filters.qp import QPBackend, QPData
 __all__ = ["STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver", "knot_changes"]
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
-STEP_TOLERANCE = 1e-4
+STEP_TOLERANCE = 1e-5
 #: Rows with a larger value [m] are not even checked within a step (no step of one iteration moves
 #: a disk that far); every row is re-evaluated at the next iterate.
 CHECK_WINDOW = 1.0
@@ -285,6 +286,8 @@ class DirectSQP:
             candidates = values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
+                if round_index > 0 and clock() > deadline:
+                    return NLPOutcome(None, 0.0, 0.0, "deadline", iterations, clock() - start_time, abandoned=True)
                 if round_index == MAX_ROW_ROUNDS:
                     working |= candidates
                 point, knot, disk = np.nonzero(working)
