@@ -506,7 +506,7 @@ def test_solver_choice_gives_the_same_answer():
         (dict(horizon_time=0.0), InvalidConfig, r"MPCConfig.horizon_time must be a finite number > 0 and <= 10, got 0"),
         (dict(horizon_time="1"), InvalidConfig, r"MPCConfig.horizon_time must be .* got '1' of type str"),
         (dict(max_commands=1), InvalidConfig, r"MPCConfig.max_commands must be an integer >= 2 and <= 400, got 1"),
-        (dict(max_commands=20.0), InvalidConfig, r"MPCConfig.max_commands must be an integer .* got 20.0 of type float"),
+        (dict(max_commands=20.0), InvalidConfig, r"MPCConfig.max_commands must be an integer .* 20.0 of type float"),
         (dict(n_points=0), InvalidConfig, r"MPCConfig.n_points must be an integer >= 1 and <= 2000, got 0"),
         (dict(margin=-0.1), InvalidConfig, r"MPCConfig.margin must be a finite number >= 0 and <= 10, got -0.1"),
         (dict(buffer=math.nan), InvalidConfig, r"MPCConfig.buffer must be a finite number >= 0 and <= 1, got nan"),

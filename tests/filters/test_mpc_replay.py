@@ -53,7 +53,7 @@ CONFIGS = (
 )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def make(config: int, solver: str) -> MPCSafetyFilter:
     name, dt, settings = CONFIGS[config]
     return MPCSafetyFilter(preset(name), dt, solver=solver, n_points=SLOTS, budget=math.inf, max_iter=200,
@@ -173,7 +173,7 @@ def test_the_direct_sqp_answers_every_recorded_problem_as_the_reference_does():
     assert len({case["config"] for case in cases}) == len(CONFIGS)
     differences, solved = [], 0
     for case in cases:
-        problem, direct = solve(case, "daqp")
+        _, direct = solve(case, "daqp")
         _, reference = solve(case, "sqpmethod")
         assert (direct.commands is None) == (reference.commands is None), (case["config"], direct.message,
                                                                            reference.message)

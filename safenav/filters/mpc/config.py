@@ -195,6 +195,6 @@ class MPCConfig:
             margin=self.margin if self.margin is not None else default_margin(robot),
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=solver,
-            n_points=self.n_points if self.n_points is not None else (CASADI_POINTS if casadi_solver else DIRECT_POINTS),
+            n_points=self.n_points if self.n_points is not None else CASADI_POINTS if casadi_solver else DIRECT_POINTS,
             budget=self.budget if self.budget is not None else BUDGET_FRACTION * dt,
         )

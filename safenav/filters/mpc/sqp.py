@@ -265,7 +265,7 @@ class DirectSQP:
         buffer_slack = slack = 0.0
         status = "max_iter"
         iterations = 0
-        for iterations in range(1, self.max_iter + 1):  # noqa: B007 - reported after the loop
+        for iterations in range(1, self.max_iter + 1):
             if clock() > deadline:
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True)
             commands = knots.reshape(n, 2) if data.expansion is None else layout.expand(knots.reshape(n, 2))
