@@ -38,6 +38,8 @@ VERIFY_TOLERANCE = 1e-6
 #: (an SQP stopped at its iteration limit can miss a linear row by ~1e-7; the first command is
 #: clipped into its bounds exactly).
 BOUND_TOLERANCE = 1e-6
+#: Acceleration rows an answer meets to this [m/s, rad/s] are left as they are by the repair.
+REPAIR_TOLERANCE = 1e-9
 #: After the last swap of missed points, an answer that misses its own rows by at most this much
 #: is accepted, with its true slack reported [m]; a larger miss counts as a failed solve.
 SETTLE_TOLERANCE = 1e-3
@@ -199,6 +201,7 @@ class MPCSafetyFilter(SafetyFilter):
         self.speed = max(robot.v_max, -robot.v_min)
         periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))
         self.layout = PlanLayout.of(periods, cfg.max_commands)
+        self._layouts: dict[int, PlanLayout] = {1: self.layout}
         self.offsets = np.array(self.body.centres, dtype=float)
         self._inflations: dict[int, tuple[np.ndarray, np.ndarray, float, float]] = {}
         self.inflated_radii, self.actuator_errors, self.buffer, self.soft_buffer = self._inflation(1)
@@ -244,6 +247,13 @@ class MPCSafetyFilter(SafetyFilter):
             self.arc_errors = arc
         self._inflations[hold] = (radii, actuator, buffer, soft)
         return radii, actuator, buffer, soft
+
+    def _layout_for(self, hold: int) -> PlanLayout:
+        """The layout of a plan whose commands are held ``hold`` periods (cached per filter)."""
+        layout = self._layouts.get(hold)
+        if layout is None:
+            layout = self._layouts[hold] = PlanLayout.of(self.horizon, self.layout.max_commands, hold)
+        return layout
 
     def _make_solver(self) -> PlanSolver:
         cfg = self.config
@@ -367,8 +377,7 @@ class MPCSafetyFilter(SafetyFilter):
         lower, upper = self._bounds(velocity, view.frontier, hold)
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, np.minimum(floor + soft, now),
                           np.minimum(guaranteed, now),
-                          np.minimum(floor, now), lower, upper,
-                          PlanLayout.of(self.horizon, self.layout.max_commands, hold), view.frontier, min_barrier,
+                          np.minimum(floor, now), lower, upper, self._layout_for(hold), view.frontier, min_barrier,
                           body.clearance(view.points))
 
     # ------------------------------------------------------------------ plans
@@ -608,8 +617,8 @@ class MPCSafetyFilter(SafetyFilter):
         iteration limit can miss a linear row by ~1e-6); the result is verified like any answer."""
         repaired = np.clip(commands, problem.lower, problem.upper)
         steps = problem.layout.period_changes[:, None] * self._step
-        if np.all(np.abs(np.diff(repaired, axis=0)) <= steps):
-            return repaired
+        if np.all(np.abs(np.diff(repaired, axis=0)) <= steps + REPAIR_TOLERANCE):
+            return repaired     # within the QP solver's accuracy: the check's tolerance is far larger
         for k in range(1, self.horizon):
             repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - steps[k - 1], repaired[k - 1] + steps[k - 1]),
                                   problem.lower[k], problem.upper[k])
