@@ -88,20 +88,25 @@ class MPCSafetyFilter(SafetyFilter):
     with ``L_d = (max(v_max, -v_min) + |c_d| omega_max) dt`` the longest path of the disk's
     centre in one period, ``e_arc_d = (L_d / 2) sin(omega_max dt / 2)`` the farthest the
     centre's arc in one period (a rigid motion at constant twist moves every point of the
-    body on an arc turning by ``omega dt``) strays from its chord, ``e_act_d = dt^2 (a_max +
-    (L + |c_d|) alpha_max)`` times ``max(beta, 1 - beta) / (1 - rho)`` of the model (1/2
-    without lag; ``L`` the base's chord) the farthest the true centre strays from the model's
-    within a period when the velocity stays between the period's start velocity and the
-    command, and ``e_o`` a remembered point's odometry uncertainty. If both ends of a period
+    body on an arc turning by ``omega dt``) strays from its chord, ``e_act_d = T^2 (a_max +
+    (v_max T + |c_d|) alpha_max)`` times ``max(beta, 1 - beta) / (1 - rho)`` of the model (1/2
+    without lag) the farthest the true centre strays from the model's while a command is held
+    for ``T`` (``dt``, or the call period of a late call) when the velocity stays between the
+    start velocity and the command (a speed error and a heading error, the latter acting on
+    the distance travelled and on the disk's offset), and ``e_o`` a remembered point's
+    odometry uncertainty. If both ends of a period
     are ``>= r_d`` from ``o``, the whole chord is ``>= sqrt(r_d^2 - L_d^2 / 4)`` from it, so
     the disk keeps ``margin`` between the knots too, and with it the footprint the disks
     cover. The disk nearest the lidar also keeps ``r_d >= range_min + |mount - c_d|``, so the
     lidar can always measure a point the plan keeps out. A point already nearer than ``r_d``
-    (noise, a push) may not be approached further (recovery). The planner aims for ``r_d +
-    buffer`` (default ``buffer = e_act + 2 noise_std``) so that the shifted previous plan
-    stays feasible; it may use the buffer at a cost (``buffer_cost``: all of it costs as much as
-    braking the first command from full speed to a stop), to pass a door just wider than the
-    body, never ``r_d``; verification and status use ``r_d``.
+    (noise, a push) may not be approached further (recovery). The planner aims beyond ``r_d``
+    by the buffer (default ``e_act + 2 noise_std``) plus the growth of the point's
+    uncertainty at the next carry by measured velocity (``T^2 (a_max + ||o|| alpha_max) / 2``),
+    so that the shifted previous plan stays feasible. The actuator part and that growth are
+    kept; the rest (the range noise) a plan may use at a cost (``buffer_cost``: all of it costs
+    as much as braking the first command from full speed to a stop), to pass a door just
+    wider than the body (:attr:`MPCProblem.floor`); never ``r_d``, which verification and the
+    status use.
 
     **Unknown region and memory.** As the CBF filter (:mod:`safenav.filters.perception`):
     outline samples facing a gap or a side no lidar sees forbid translating towards them over
@@ -124,11 +129,14 @@ class MPCSafetyFilter(SafetyFilter):
     (:class:`~safenav.filters.mpc.sqp.DirectSQP`): casadi gives the model and its exact
     derivatives (one Function per shape, built once), each step's QP goes to DAQP directly
     through the same back-end interface as the CBF's (:mod:`safenav.filters.qp`), warm-started
-    from the previous plan shifted by one period. ``solver="sqpmethod"`` solves the same NLP
-    with casadi's ``sqpmethod`` instead (the reference; about three times slower). **Every
-    answer is checked numerically** against every bound, every acceleration row and *every*
-    point in reach at every period's end; points the plan violates are swapped into the ``K``
-    slots and the NLP is solved again (up to ``max_rounds`` solves).
+    from the previous plan (shifted by one period, its final braking left aligned with the
+    end of the horizon) and from the previous QP's active set. ``solver="sqpmethod"`` solves the
+    same NLP with casadi's ``sqpmethod`` instead (the reference, three to ten times slower).
+    **Every answer is checked numerically** against every bound, every acceleration row and
+    *every* point in reach at every period's end; points the plan violates are swapped into the
+    ``K`` slots and the NLP is solved again (up to ``max_rounds`` solves). An answer that needs
+    slack gives way to the previous plan shifted by one period when that plan, checked the
+    same way, needs none.
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
     of ``dt``), counted from the start of the optimisation and checked before every QP of
@@ -137,8 +145,10 @@ class MPCSafetyFilter(SafetyFilter):
     (status ``FALLBACK``, reason ``deadline``); without one it brakes at the acceleration
     limits. The overrun is at most one QP of the SQP.
 
-    **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans the
-    first command held for ``m`` periods (its first ``m`` commands equal) and reports ``LATE``.
+    **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
+    command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
+    acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the
+    block's length ``T = m dt``) and reports ``LATE``.
 
     **Guarantee.** If the world is static, every obstacle wider than the beam gap at 1 m is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF
@@ -151,9 +161,10 @@ class MPCSafetyFilter(SafetyFilter):
     ``margin`` from every point seen or remembered at least ``r_d`` away, and the plan it
     follows can be continued to a stop without coming nearer. Returned commands always respect
     the velocity and acceleration limits. **Recursive feasibility:** if the base moves
-    exactly as modelled and no point is nearer than ``r_d``, the previous plan shifted by one
-    period satisfies every constraint the filter verifies in the next problem; with move
-    blocking it need not be a plan the optimiser can represent, and it stays the fallback.
+    exactly as modelled and no point is nearer than the planned radius, the previous plan
+    shifted by one period passes every check of the next problem, and the filter takes it
+    when its optimiser's answer needs slack (with move blocking the shifted plan need not be
+    one the optimiser can represent).
     The filter checks the base against its model at every call with ``velocity`` and warns
     (:attr:`FilterResult.warnings`) when the base lags more than the model allows.
 
@@ -475,9 +486,24 @@ class MPCSafetyFilter(SafetyFilter):
                                   details)
         if outcome.commands is None or outcome.check is None:
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
+        if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
+            outcome = self._keep_shifted(problem, shifted, outcome)
         self._commands = outcome.commands
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
                             solve_time=outcome.solve_time, solver=self.backend.name)
+
+    def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
+        """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
+
+        With move blocking the shifted plan need not be one the optimiser can represent, so an
+        answer with slack does not prove that no plan without slack exists: the shifted plan is
+        checked like any answer (its first command moved into what the base can reach now).
+        """
+        commands = self._repair(shifted, problem)
+        check = self.check_plan(problem, commands)
+        if check.limits <= BOUND_TOLERANCE and check.clearance >= -VERIFY_TOLERANCE:
+            return solved._replace(commands=commands, check=check)
+        return solved
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
                 used: np.ndarray, solve_time: float, solver: str) -> FilterResult:

@@ -51,6 +51,9 @@ __all__ = ["STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
 STEP_TOLERANCE = 1e-5
+#: A knot's nearest row goes to the QP at once when its value is at most this [m] (the others only
+#: when an answer violates them).
+ROW_WINDOW = 0.2
 #: Rows with a larger value [m] are not even checked within a step (no step of one iteration moves
 #: a disk that far); every row is re-evaluated at the next iterate.
 CHECK_WINDOW = 1.0
@@ -276,13 +279,15 @@ class DirectSQP:
             # Row gradients are (c - o) / r times the centre's Jacobian.
             direction = (centres[None] - nlp.points[:, None, None, :]) / radii[..., None]   # (M, K, D, 2)
             values = 0.5 * radii * (np.einsum("mkdi,mkdi->mkd", direction, direction) - 1.0)
-            # Per knot and disk the nearest point, and the rows active at the previous answer, go to the
-            # QP at once; any other row near enough to bind is added when the answer violates it.
+            # Per knot and disk the nearest point when it is within ROW_WINDOW, and the rows active at
+            # the previous answer, go to the QP at once; any other row near enough to bind is added
+            # when the answer violates it.
             working = row_state != 0
             if values.shape[0]:
                 nearest = np.argmin(values, axis=0)
                 knot_index, disk_index = np.indices(nearest.shape)
-                working[nearest, knot_index, disk_index] = True
+                close = values[nearest, knot_index, disk_index] <= ROW_WINDOW
+                working[nearest[close], knot_index[close], disk_index[close]] = True
             candidates = values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
