@@ -280,6 +280,21 @@ def test_moving_too_fast_to_stop_relaxes_with_slack_and_brakes_hard():
 
 # ------------------------------------------------------------------ properties on random scans
 
+def scattered(draw, *, count: tuple[int, int], distance: tuple[float, float], radius: float, side: float) -> Scene:
+    """Circles (radius 2 cm to ``radius``) and boxes (sides 5 cm to ``side``) at random bearings [m]."""
+    items = []
+    for _ in range(draw(st.integers(*count))):
+        reach = draw(st.floats(*distance))
+        bearing = draw(st.floats(-math.pi, math.pi))
+        centre = (reach * math.cos(bearing), reach * math.sin(bearing))
+        if draw(st.booleans()):
+            items.append(Circle(centre, draw(st.floats(0.02, radius))))
+        else:
+            items.append(box(centre, (draw(st.floats(0.05, side)), draw(st.floats(0.05, side))),
+                             draw(st.floats(-math.pi, math.pi))))
+    return Scene.of(*items)
+
+
 @st.composite
 def cases(draw):
     robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
@@ -290,17 +305,7 @@ def cases(draw):
         mount = Pose2D(draw(st.floats(-0.05, 0.1)), draw(st.floats(-0.05, 0.05)), draw(st.floats(-math.pi, math.pi)))
         robot = robot.replace(lidar=LidarSpec(n_beams=n, angle_min=angle_min, angle_max=angle_min + fov,
                                               range_min=0.05, range_max=8.0, mount=mount))
-    items = []
-    for _ in range(draw(st.integers(0, 8))):
-        distance = draw(st.floats(0.1, 2.0))
-        bearing = draw(st.floats(-math.pi, math.pi))
-        centre = (distance * math.cos(bearing), distance * math.sin(bearing))
-        if draw(st.booleans()):
-            items.append(Circle(centre, draw(st.floats(0.02, 0.4))))
-        else:
-            items.append(box(centre, (draw(st.floats(0.05, 1.0)), draw(st.floats(0.05, 1.0))),
-                             draw(st.floats(-math.pi, math.pi))))
-    scan = synthetic_scan(robot, Scene.of(*items))
+    scan = synthetic_scan(robot, scattered(draw, count=(0, 8), distance=(0.1, 2.0), radius=0.4, side=1.0))
     u_nom = np.array([draw(st.floats(1.5 * robot.v_min, 1.5 * robot.v_max)),
                       draw(st.floats(-1.5 * robot.omega_max, 1.5 * robot.omega_max))])
     velocity = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max,

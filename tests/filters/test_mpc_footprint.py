@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_mpc import scattered
 
 from safenav import Pose2D, preset, unicycle_step
 from safenav.filters import FilterStatus, MPCSafetyFilter
 from safenav.filters.body import BodyModel, polygon_distance
 from safenav.filters.mpc.plan import disk_centres
 from safenav.reference import GoToGoal
-from safenav.synthetic import Circle, Scene, Segment, box, synthetic_scan
+from safenav.synthetic import Circle, Scene, Segment, synthetic_scan
 
 DT = 0.05
 #: Disks of the cover per robot: the m2wr's 0.5 x 0.3 m body needs five for a door 5 cm wider than it.
@@ -181,19 +182,10 @@ def test_a_corridor_with_a_right_angle_keeps_the_footprint_clear(name, extra, pa
 def cluttered(draw):
     name = draw(st.sampled_from(["rosbot", "m2wr"]))
     robot = preset(name)
-    items = []
-    for _ in range(draw(st.integers(1, 6))):
-        distance = draw(st.floats(0.35, 1.5))
-        bearing = draw(st.floats(-math.pi, math.pi))
-        centre = (distance * math.cos(bearing), distance * math.sin(bearing))
-        if draw(st.booleans()):
-            items.append(Circle(centre, draw(st.floats(0.02, 0.3))))
-        else:
-            items.extend(box(centre, (draw(st.floats(0.05, 0.8)), draw(st.floats(0.05, 0.8))),
-                             draw(st.floats(-math.pi, math.pi))))
+    scene = scattered(draw, count=(1, 6), distance=(0.35, 1.5), radius=0.3, side=0.8)
     u_nom = np.array([draw(st.floats(0.0, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
     velocity = np.array([draw(st.floats(0.0, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
-    return name, Scene.of(*items), u_nom, velocity
+    return name, scene, u_nom, velocity
 
 
 FILTERS: dict[str, MPCSafetyFilter] = {}
