@@ -554,3 +554,43 @@ def test_braking_benchmark_velocity_level_cbf_crashes_where_the_mpc_stops():
     assert rows["cbf, acceleration ignored"]["collisions"] >= 1
     assert rows["mpc"]["collisions"] == 0 and rows["cbf"]["collisions"] == 0
     assert rows["mpc"]["min_clearance"] >= 0.0
+
+
+# ------------------------------------------------------------------ layouts: horizon in seconds, late calls
+
+
+@pytest.mark.parametrize(("periods", "max_commands", "hold"), [(20, 20, 1), (51, 20, 1), (50, 20, 1), (20, 20, 3),
+                                                              (51, 20, 2)])
+def test_layouts_interpolate_or_hold_and_keep_the_braking_authority(periods, max_commands, hold):
+    from safenav.filters.mpc import PlanLayout
+
+    layout = PlanLayout.of(periods, max_commands, hold)
+    B = layout.interpolation
+    assert B.shape == (periods, layout.n_knots) and np.allclose(B.sum(axis=1), 1.0) and np.all(B >= 0.0)
+    assert np.array_equal(B[layout.knots], np.eye(layout.n_knots))       # a knot's own command is its own
+    assert layout.knots[0] == 0 and layout.n_knots <= max(max_commands, math.ceil(periods / hold))
+    rng = np.random.default_rng(periods + hold)
+    knots = rng.normal(size=(layout.n_knots, 2))
+    commands = layout.expand(knots)
+    changes = np.abs(np.diff(commands, axis=0))
+    # Knot changes within the layout's allowance give per-period changes within one period's allowance.
+    allowed = np.abs(np.diff(knots, axis=0)) / layout.changes[:, None]
+    if hold == 1:
+        assert layout.knots[-1] == periods - 1
+        assert np.all(changes <= np.repeat(allowed, np.diff(layout.knots), axis=0) + 1e-12)
+    else:
+        assert np.all(commands == np.repeat(knots, hold, axis=0)[:periods])       # blocks of `hold` equal commands
+        assert np.all(changes[layout.period_changes == 0.0] == 0.0)
+
+
+@pytest.mark.parametrize("period", [0.04, 0.06])
+def test_late_calls_at_a_short_period_plan_blocks_and_stay_clear(period):
+    """dt = 0.02 (a 50-period plan with 20 chosen commands) and a scan callback every 0.04/0.06 s."""
+    from benchmarks.falsify import Episode, run
+
+    outcome, log = run(Episode(robot="rosbot", filter="mpc", base="ramp_limit", dt=0.02, period=period,
+                               segments=((1.6, -3.0, 1.6, 3.0),), nominal="arc", params=(1.0, 0.5), duration=3.0,
+                               settings={"budget": math.inf}), record=True)
+    assert outcome.valid and not outcome.contact
+    assert outcome.min_clearance >= outcome.margin - 1e-4
+    assert {row["status"] for row in log} & {"late"}
