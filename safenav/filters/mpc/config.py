@@ -32,7 +32,7 @@ DEFAULT_COMMANDS = 20
 #: Default compute budget of one call, as a share of the period ``dt``.
 BUDGET_FRACTION = 0.5
 #: Default point slots of the direct SQP and of the casadi solvers.
-DIRECT_POINTS, CASADI_POINTS = 256, 32
+DIRECT_POINTS, CASADI_POINTS = 64, 32
 #: casadi QP plugins the reference ``sqpmethod`` can use here, in order of preference.
 CONIC_PLUGINS = ("daqp", "qrqp", "osqp", "qpoases", "hpipm", "proxqp", "highs")
 HESSIANS = ("gauss-newton", "exact")
@@ -86,9 +86,9 @@ class MPCConfig:
         n_disks: disks of the cover.
         n_points: the most obstacle points the optimiser sees at once (its slots; the nearest per
             angular bin); the plan is checked against every point in reach, and missed points are
-            swapped in. Default: 256 for the direct SQP (it only passes the rows that can bind to
-            each QP, so every point in reach usually fits), 32 for the casadi solvers (each slot is
-            a row per disk and knot of their NLP).
+            swapped in. Default: 64 for the direct SQP (it passes only the rows that can bind to
+            each QP; 64 slots rarely need a swap, and cost less per iteration than every point in
+            reach), 32 for the casadi solvers (each slot is a row per disk and knot of their NLP).
         solver: ``"daqp"`` (default: the direct SQP with DAQP), another QP back-end of the direct
             SQP (``"quadprog"``, ``"osqp"``, ``"qpsolvers:daqp"``, ...), ``"sqpmethod"`` (the
             reference: casadi's SQP; ``"sqpmethod:qpoases"`` picks its QP plugin), or ``"ipopt"``;
