@@ -43,6 +43,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
+from safenav._optional import require
 from safenav.filters import make_filter
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
@@ -394,7 +395,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
     footprint = None
-    if episode.settings.get("body") == "cover" and robot.footprint is not None:
+    if episode.settings.get("body") in ("cover", "polygon") and robot.footprint is not None:
         footprint = np.asarray(robot.footprint, dtype=float)   # the guarantee is then for the footprint
 
     def truth(poses: np.ndarray) -> np.ndarray:
@@ -474,6 +475,22 @@ def _pick(unit: float, options: Sequence[str]) -> str:
     return options[min(int(unit * len(options)), len(options) - 1)]
 
 
+WALL_THICKNESS = 0.05
+"""Walls are boxes this thick [m]: a wall of no thickness seen edge-on is narrower than any beam gap, which
+the guarantee does not cover (A2, docs/safety.md); real walls are not."""
+
+
+def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
+           ) -> list[tuple[float, float, float, float]]:
+    """The four sides of a wall from ``start`` to ``end`` [m], ``WALL_THICKNESS`` thick away from the origin."""
+    start_point, end_point = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    offset = WALL_THICKNESS * np.array([math.cos(normal), math.sin(normal)])
+    if np.dot(offset, 0.5 * (start_point + end_point)) < 0.0:
+        offset = -offset     # thicken away from the robot, so the face it sees stays where it was drawn
+    corners = [start_point, end_point, end_point + offset, start_point + offset]
+    return [(*corners[i], *corners[(i + 1) % 4]) for i in range(4)]
+
+
 def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
            settings: dict[str, Any] | None = None) -> Episode:
@@ -511,7 +528,7 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         tangent = normal + 0.5 * math.pi
         cx, cy = distance * math.cos(normal), distance * math.sin(normal)
         tx, ty = 4.0 * math.cos(tangent), 4.0 * math.sin(tangent)
-        segments.append((cx - tx, cy - ty, cx + tx, cy + ty))
+        segments.extend(_thick((cx - tx, cy - ty), (cx + tx, cy + ty), normal))
     if geometry == "door":
         # A wall with one door across the heading, its gap a little wider than the body needs.
         distance = keep_out + u[6] * 1.2
@@ -524,10 +541,10 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         for sign in (-1.0, 1.0):
             near = centre + sign * 0.5 * width * along
             far = centre + sign * 4.0 * along
-            segments.append((near[0], near[1], far[0], far[1]))
+            segments.extend(_thick(tuple(near), tuple(far), angle))
         if u[10] > 0.5:   # a back wall behind the door
             back = centre + (0.4 + u[11]) * np.array([c, s])
-            segments.append((*(back - 3.0 * along), *(back + 3.0 * along)))
+            segments.extend(_thick(tuple(back - 3.0 * along), tuple(back + 3.0 * along), angle))
     v_scale = max(spec.v_max, -spec.v_min)
     if nominal == "arc":
         params: tuple[float, ...] = (spec.v_max * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
@@ -589,7 +606,7 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
         for _ in range(episodes):
             evaluate(rng.uniform(0.0, 1.0, N_COORDINATES))
         return found
-    import cma
+    cma = require("cma", extra="bench", purpose="the falsifier's CMA-ES search")
 
     while len(found) < episodes:
         budget = episodes - len(found)
@@ -606,7 +623,7 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
 # ---------------------------------------------------------------------------------------------- command line
 
 
-BODIES = ("disk", "cover")
+BODIES = ("disk", "polygon", "cover")
 """Body models searched: the circumscribed disk, and the cover of the footprint (its truth is then the polygon)."""
 
 

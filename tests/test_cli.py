@@ -46,7 +46,8 @@ def test_every_command_has_help(argv, expected, capsys, monkeypatch):
      "unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance, stop_at_wall, wall_follower"),
     (["run", "--policy", "dance"], "unknown policy 'dance'; expected one of: go_to_goal, obstacle_avoidance, "
                                    "random_walk, stop_at_wall, stop_at_wall_buggy, wall_follower"),
-    (["run", "--filter", "magic"], "unknown filter 'magic'; expected one of: cbf, mpc, none, zones"),
+    (["run", "--filter", "magic"], "unknown filter 'magic'; expected one of: cbf, cbf+escape, mpc, mpc+escape, "
+                                   "none, zones, zones+escape"),
     (["run", "--world", "wall_follower", "--policy", "go_to_goal"], "needs a world with a goal"),
     (["run", "--duration", "-1"], "argument --duration: must be a number > 0, got -1"),
     (["run", "--speed", "3"], "unrecognized arguments: --speed 3"),
@@ -79,7 +80,8 @@ def test_bench_collisions_reports_bad_names_with_its_own_prefix(capsys, monkeypa
     monkeypatch.chdir(ROOT)
     assert main(["bench", "collisions", "--filters", "magic"]) == 2
     error = capsys.readouterr().err.strip()
-    assert error == "safenav bench collisions: error: unknown filter 'magic'; expected one of: cbf, mpc, none, zones"
+    assert error == ("safenav bench collisions: error: unknown filter 'magic'; expected one of: cbf, cbf+escape, mpc, "
+                     "mpc+escape, none, zones, zones+escape")
 
 
 @pytest.mark.sim

@@ -25,6 +25,7 @@ from safenav.experiments import (
     scenario_for,
     wilson_interval,
 )
+from safenav.filters import FILTER_NAMES
 from safenav.scenarios import SCENARIO_NAMES, scenario
 
 collision_rates = load_benchmark("collision_rates", roots=[Path(__file__).resolve().parents[1]])
@@ -136,7 +137,7 @@ def test_matrix_covers_every_scenario_and_policy_in_registry_order():
     cells = matrix()
     pairs = list(dict.fromkeys((cell.scenario, cell.policy) for cell in cells))
     assert pairs == [(name, policy) for name in SCENARIO_NAMES for policy in scenario(name).policies]
-    assert len(cells) == 4 * len(pairs)
+    assert len(cells) == len(FILTER_NAMES) * len(pairs)
     assert [cell.filter for cell in cells[:4]] == ["none", "zones", "cbf", "mpc"]
 
 
@@ -149,7 +150,7 @@ def test_matrix_selects_policies_across_scenarios():
 @pytest.mark.parametrize(("call", "error", "message"), [
     (lambda: matrix(scenarios=["moon"]), UnknownName, "unknown scenario 'moon'; expected one of: clutter_m2wr"),
     (lambda: matrix(policies=["dance"]), UnknownName, "unknown policy 'dance'; expected one of: go_to_goal"),
-    (lambda: matrix(filters=["magic"]), UnknownName, "unknown filter 'magic'; expected one of: cbf, mpc, none"),
+    (lambda: matrix(filters=["magic"]), UnknownName, r"unknown filter .magic.; expected one of: cbf, cbf\+escape, mpc"),
     (lambda: matrix(scenarios=["stop_at_wall"], policies=["go_to_goal"]), InvalidConfig, "no scenario"),
     (lambda: scenario_for("stop_at_wall", robot="r2d2"), UnknownName, "unknown robot 'r2d2'"),
     (lambda: scenario_for("wall_follower", policy="go_to_goal"), InvalidConfig, "needs a world with a goal"),

@@ -156,11 +156,19 @@ def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
     Commands are compared as fractions of the velocity limits ``scale``, the nominal clipped to
     them; the progress is the projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
     """
-    nominal = np.clip(u_nom / scale, -1.0, 1.0)
+    nominal = np.clip(u_nom, -scale, scale) / scale
     size = float(nominal @ nominal)
     if size <= 0.0:
         return 1.0
     return min(float((u / scale) @ nominal) / size, 1.0)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+_NO_POINTS = _read_only(np.empty((0, 2)))
 
 
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
@@ -215,7 +223,7 @@ class FilterResult:
     min_barrier: float = math.inf
     clearance: float = math.inf
     n_constraints: int = 0
-    constraint_points: np.ndarray = field(default_factory=lambda: _frozen(np.empty((0, 2))))
+    constraint_points: np.ndarray = field(default_factory=lambda: _NO_POINTS)
     active: tuple[int, ...] = ()
     slack: float = 0.0
     solver: str = ""
@@ -228,9 +236,12 @@ class FilterResult:
     escape: str = ""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "u", _frozen(self.u, (2,)))
-        object.__setattr__(self, "u_nom", _frozen(self.u_nom, (2,)))
-        object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
+        same = self.u is self.u_nom       # minimal intervention: u is u_nom, share the read-only copy
+        u_nom = _frozen(self.u_nom, (2,))
+        object.__setattr__(self, "u_nom", u_nom)
+        object.__setattr__(self, "u", u_nom if same else _frozen(self.u, (2,)))
+        if self.constraint_points is not _NO_POINTS:
+            object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
         object.__setattr__(self, "active", tuple(map(int, self.active)))
         if self.plan is not None:
             object.__setattr__(self, "plan", _frozen(self.plan))
@@ -340,6 +351,7 @@ class SafetyFilter(abc.ABC):
         self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
         self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
         self._stalled = 0.0
+        self._scale = (float(robot.upper[0]), float(robot.upper[1]))
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
         if memory_range is None:
             speed = max(robot.v_max, -robot.v_min)
@@ -445,10 +457,18 @@ class SafetyFilter(abc.ABC):
 
     def _watch_progress(self, result: FilterResult) -> FilterResult:
         """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""
-        scale = self.robot.upper
-        nominal = result.u_nom
-        wants = bool(np.all(np.isfinite(nominal))) and float(np.max(np.minimum(np.abs(nominal), scale) / scale)) > STILL
-        if not wants or progress(result.u, result.u_nom, scale) >= STALL_PROGRESS:
+        v_scale, omega_scale = self._scale
+        v_nom, omega_nom = float(result.u_nom[0]), float(result.u_nom[1])
+        if not (math.isfinite(v_nom) and math.isfinite(omega_nom)):
+            self._stalled = 0.0
+            return result
+        # The nominal clipped to the limits, both axes as fractions of them (see progress()).
+        n_v = max(-1.0, min(1.0, v_nom / v_scale))
+        n_omega = max(-1.0, min(1.0, omega_nom / omega_scale))
+        size = n_v * n_v + n_omega * n_omega
+        kept = (float(result.u[0]) / v_scale * n_v + float(result.u[1]) / omega_scale * n_omega) / size \
+            if size > 0.0 else 1.0
+        if max(abs(n_v), abs(n_omega)) <= STILL or kept >= STALL_PROGRESS:
             self._stalled = 0.0
             return result
         self._stalled += result.period if math.isfinite(result.period) else self.dt
@@ -485,19 +505,24 @@ class SafetyFilter(abc.ABC):
         at most ``exp(-elapsed / time_constant)`` of the way back (a first-order lag).
         """
         previous = self._last_velocity
-        if velocity is None or previous is None or not self._called or not np.all(np.isfinite(velocity)):
+        if velocity is None or previous is None or not self._called:
             return ""
-        command = self._last_command
-        tolerance = np.array([0.25 * self.robot.a_max * self.dt + 0.01, 0.25 * self.robot.alpha_max * self.dt + 0.02])
-        left = np.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
-        allowed = left * np.abs(previous - command) + tolerance
-        between = (velocity >= np.minimum(previous, command) - tolerance) & (
-            velocity <= np.maximum(previous, command) + tolerance)
-        if np.all(np.abs(velocity - command) <= allowed) and np.all(between):
+        measured = (float(velocity[0]), float(velocity[1]))
+        if not (math.isfinite(measured[0]) and math.isfinite(measured[1])):
             return ""
-        return (f"the base does not follow its commands as assumed: measured {np.round(velocity, 3).tolist()} "
-                f"after {elapsed:.3f} s from {np.round(previous, 3).tolist()} towards {np.round(command, 3).tolist()} "
-                f"(time_constant={self.time_constant}); the guarantee needs time_constant set to the base's lag")
+        command = (float(self._last_command[0]), float(self._last_command[1]))
+        left = math.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
+        robot = self.robot
+        for axis, tolerance in ((0, 0.25 * robot.a_max * self.dt + 0.01), (1, 0.25 * robot.alpha_max * self.dt + 0.02)):
+            start, target, now = float(previous[axis]), command[axis], measured[axis]
+            if abs(now - target) > left * abs(start - target) + tolerance or not (
+                    min(start, target) - tolerance <= now <= max(start, target) + tolerance):
+                return (f"the base does not follow its commands as assumed: measured "
+                        f"{np.round(velocity, 3).tolist()} after {elapsed:.3f} s from "
+                        f"{np.round(previous, 3).tolist()} towards {np.round(command, 3).tolist()} "
+                        f"(time_constant={self.time_constant}); the guarantee needs time_constant set to the "
+                        f"base's lag")
+        return ""
 
     def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
         """Move the remembered points by the motion since the previous call."""
@@ -505,7 +530,7 @@ class SafetyFilter(abc.ABC):
         last_pose, self._last_pose = self._last_pose, odometry
         last_velocity = self._last_velocity
         self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
-        if self.memory is None or not self._called:
+        if self.memory is None or not self._called or len(self.memory) == 0:
             return
         if odometry is not None and last_pose is not None:
             self.memory.carry(last_pose.inverse().compose(odometry))
@@ -596,7 +621,7 @@ class SafetyFilter(abc.ABC):
 
     def _observe(self, scans: tuple[LaserScan, ...]) -> View:
         """Obstacle points (current and remembered) and the unknown region of this call."""
-        current = beam_points(scans, self.robot.radius)
+        current = beam_points(scans, self.body)
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
@@ -645,9 +670,7 @@ def scan_noise(robot: RobotSpec) -> float:
 
 
 def _replace(result: FilterResult, **changes: Any) -> FilterResult:
-    """``result`` with some fields changed (a frozen dataclass copy)."""
-    if not changes:
-        return result
-    values = {name: getattr(result, name) for name in result.__dataclass_fields__}
-    values.update(changes)
-    return FilterResult(**values)
+    """``result`` with some fields changed, in place: it is a result this call made and nobody holds yet."""
+    for name, value in changes.items():
+        object.__setattr__(result, name, value)
+    return result

@@ -18,6 +18,7 @@ __all__ = [
     "default_margin",
     "default_weights",
     "lag_fraction",
+    "noise_allowance",
     "reaction_time",
 ]
 
@@ -41,6 +42,16 @@ def default_margin(robot: RobotSpec) -> float:
     noise = max(lidar.noise_std for lidar in lidars)
     increment = max(lidar.angle_increment for lidar in lidars)
     return SAFETY_DISTANCE + 2.0 * noise + 1.0 * increment
+
+
+def noise_allowance(robot: RobotSpec, margin: float) -> float:
+    """The range-noise part of ``margin`` [m]: ``2 noise_std`` of the noisiest lidar, at most half the margin.
+
+    The braking rows keep the base able to stop before the margin less this allowance: a
+    reading that noise puts just inside the margin then does not forbid every approach.
+    """
+    lidars = getattr(robot, "lidars", (robot.lidar,))
+    return min(2.0 * max(lidar.noise_std for lidar in lidars), 0.5 * margin)
 
 
 def default_gamma(robot: RobotSpec, dt: float) -> float:

@@ -62,44 +62,64 @@ def body_clearance(points: np.ndarray, body_radius: float) -> float:
     return float(np.hypot(points[:, 0], points[:, 1]).min()) - body_radius if len(points) else math.inf
 
 
-def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Beams that give an obstacle point, and the range to put it at [m], for a body of ``body_radius``.
+def obstacle_beams(scan: LaserScan, body: BodyModel | float) -> tuple[np.ndarray, np.ndarray]:
+    """Beams that give an obstacle point, and the range to put it at [m], for ``body``.
 
     ``HIT`` beams keep their range. A ``TOO_CLOSE`` beam (``-inf``) says an object is closer
-    than ``range_min``, maybe touching the body: it is put where the beam leaves the disk of
-    ``body_radius`` around the base origin, or at ``range_min`` if that is nearer. A filter
-    then sees the robot as inside its margin and backs out of the lidar's blind zone instead
-    of trusting a clearance it cannot measure (a lidar whose ``range_min`` exceeds the body
-    radius plus the margin cannot see the margin).
+    than ``range_min``, maybe touching the body: it is put where the beam leaves the body's
+    outline (the footprint polygon, or the disk; a number is the radius of a disk around the
+    base origin), or at ``range_min`` if that is nearer. A filter then sees the robot as inside
+    its margin and backs out of the lidar's blind zone instead of trusting a clearance it cannot
+    measure (a lidar whose ``range_min`` exceeds the distance to the body's edge plus the margin
+    cannot see the margin).
     """
     index, ranges = scan.obstacle_beams()
     too_close = scan.ranges[index] == -math.inf
     if too_close.any():
         geometry = scan.geometry
-        mx, my = scan.mount.x, scan.mount.y
-        cos, sin = geometry.cos_base[index[too_close]], geometry.sin_base[index[too_close]]
-        along = mx * cos + my * sin
-        inside = body_radius**2 - (mx * mx + my * my)
-        if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
-            exit_range = -along + np.sqrt(along**2 + inside)
-            ranges[too_close] = np.minimum(ranges[too_close], exit_range)
+        origin = np.array([scan.mount.x, scan.mount.y])
+        beams = index[too_close]
+        direction = np.column_stack((geometry.cos_base[beams], geometry.sin_base[beams]))
+        outline = None if not isinstance(body, BodyModel) else body.outline
+        if outline is None:
+            radius = body if not isinstance(body, BodyModel) else float(body.radii[0])
+            along = direction @ origin
+            inside = radius**2 - float(origin @ origin)
+            if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
+                ranges[too_close] = np.minimum(ranges[too_close], -along + np.sqrt(along**2 + inside))
+        else:
+            ranges[too_close] = np.minimum(ranges[too_close], _exit_ranges(origin, direction, outline))
     return index, ranges
 
 
-def beam_points(scans: tuple[LaserScan, ...], body_radius: float, max_distance: float = math.inf
+def _exit_ranges(origin: np.ndarray, direction: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """How far rays from ``origin`` (inside the convex ``polygon``) along ``direction`` ``(K, 2)`` leave it [m]."""
+    a = polygon
+    edge = np.roll(a, -1, axis=0) - a
+    normal = np.column_stack((edge[:, 1], -edge[:, 0]))           # outward for a counter-clockwise polygon
+    depth = np.einsum("vi,vi->v", normal, a) - normal @ origin    # >= 0 while the origin is inside
+    speed = direction @ normal.T                                  # (K, V): how fast each ray nears each edge
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(speed > 1e-12, depth[None, :] / speed, np.inf)
+    return np.maximum(np.min(reach, axis=1), 0.0)
+
+
+def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_distance: float = math.inf
                 ) -> np.ndarray:
-    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m].
+    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m] (``body``: see :func:`obstacle_beams`).
 
     With ``max_distance``, beams whose point cannot be within ``max_distance`` of the base
     origin (range beyond ``max_distance + |mount|``) are skipped before any trigonometry.
     """
     pieces = []
     for scan in scans:
-        index, ranges = obstacle_beams(scan, body_radius)
+        index, ranges = obstacle_beams(scan, body)
         if math.isfinite(max_distance):
             keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
             index, ranges = index[keep], ranges[keep]
         pieces.append(scan.beam_points(index, ranges))
+    if len(pieces) == 1:
+        return pieces[0]
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
@@ -222,9 +242,7 @@ def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float
         side_tolerance: outline samples whose outward normal is within this angle of
             sideways do not forbid translation [rad].
     """
-    outline = body.outline
-    layout = _layout(tuple(_layout_key(scan) for scan in scans), outline.tobytes() if outline is not None else b"",
-                     float(body.radii[0]) if outline is None else 0.0, side_tolerance, body.reach)
+    layout = _layout(tuple(_layout_key(scan) for scan in scans), *body.key, side_tolerance, body.reach)
     if all(scan.n_informative == scan.n_beams for scan in scans):
         return layout.clear
     points, normals = body.boundary()
@@ -327,15 +345,17 @@ class PointMemory:
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
         """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity.
 
-        Everything else is forgotten; the points are stored in the current base frame.
+        Everything else is forgotten; the points are stored in the current base frame. Without
+        recalled points the current ones are kept as they are (``current`` must not be changed
+        afterwards) and the range and capacity are applied when they are recalled.
         """
-        points = np.vstack((current, recalled)) if recalled.shape[0] else current
-        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty)) if recalled.shape[0] \
-            else np.zeros(current.shape[0])
-        distance = np.hypot(points[:, 0], points[:, 1])
-        keep = distance <= self.max_range
-        points, uncertainty, distance = points[keep], uncertainty[keep], distance[keep]
+        if recalled.shape[0]:
+            points = np.vstack((current, recalled))
+            uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+        else:
+            points, uncertainty = current, np.zeros(current.shape[0])
         if points.shape[0] > self.capacity:
+            distance = np.hypot(points[:, 0], points[:, 1])
             order = np.argsort(distance, kind="stable")[: self.capacity]
             points, uncertainty = points[order], uncertainty[order]
         self._points, self._uncertainty = points, uncertainty

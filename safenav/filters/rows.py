@@ -24,6 +24,7 @@ rate at which ``p_j`` approaches ``o`` is ``a_j(o) . (v, omega)`` with
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -36,8 +37,10 @@ __all__ = [
     "barrier_rows",
     "blind_rows",
     "braking_rows",
+    "braking_swing",
     "gap_rows",
     "geometry",
+    "polygon_geometry",
     "ramp_corners",
     "stack",
     "stopping_speed",
@@ -81,9 +84,11 @@ def _rows(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: str) -> Rows:
 
 def stack(*blocks: Rows) -> Rows:
     """One block of all the rows of ``blocks``."""
-    blocks = tuple(block for block in blocks if len(block))
+    blocks = tuple(block for block in blocks if block.h.size)
     if not blocks:
         return Rows(np.empty((0, 4)), np.empty(0), np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    if len(blocks) == 1:
+        return blocks[0]
     return Rows(np.vstack([b.G for b in blocks]), np.concatenate([b.h for b in blocks]),
                 np.concatenate([b.point for b in blocks]), np.concatenate([b.family for b in blocks]))
 
@@ -101,13 +106,74 @@ class Geometry(NamedTuple):
     approach: np.ndarray
     """``(K, 2)`` ``a_j(o)``: the approach rate of the pair is ``approach . (v, omega)`` [1, m]."""
     arc: np.ndarray
-    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``."""
-    bearing: np.ndarray
-    """``(K,)`` direction of the point from the control point, relative to the heading [rad]."""
+    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``.
+
+    The cosine of the point's bearing from the control point, relative to the heading, is
+    ``approach[:, 0]`` (``-n_x``)."""
+
+
+def slide(along: np.ndarray, lateral: np.ndarray, reach: np.ndarray, floor: float, travel: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The supporting half-plane of each point that leaves the most room to travel along the heading.
+
+    A point ``o`` at distance ``rho`` from a control point ``p`` is kept ``reach`` away by any
+    half-plane ``{x : u . (o - x) >= reach + c}`` with ``u`` a unit vector and ``c >= 0``:
+    ``||x - o|| >= u . (o - x)``. The point's own direction (``u = (o - p) / rho``) gives the
+    largest ``c``, the barrier ``h = rho - reach``, but every displacement with a component
+    towards ``o`` then counts as an approach, so a row written with it forbids sliding past
+    ``o`` once ``h`` is small, although the distance barely changes (the linearisation is loose
+    by the square of the tangential displacement over ``rho``). Any other unit ``u`` gives a
+    valid, smaller ``c'``; this picks, among those with ``c' >= floor`` (so that standing still
+    keeps satisfying the barrier condition), the half-plane that contains the segment from
+    ``p`` along the heading (towards ``o``'s side) up to ``travel``, with ``K = reach + floor``:
+
+    * the point is within ``K`` already (``rho < K``), or ``travel`` is 0: its own direction;
+    * the segment passes ``o`` at a lateral offset ``>= K`` and ``o`` is within ``travel``:
+      the lateral direction (the half-plane is parallel to the heading);
+    * the segment enters the disk of radius ``K`` about ``o``: the tangent to that disk
+      parallel to the segment's line of entry (the largest speed along the heading);
+    * otherwise: the direction from the segment's end to ``o``.
+
+    Args:
+        along: ``(K,)`` ``|o_x - p_x|``, the distance of each point along the heading [m].
+        lateral: ``(K,)`` ``|o_y - p_y|`` [m].
+        reach: ``(K,)`` distance kept from each point (radius, look-ahead, margin, uncertainty) [m].
+        floor: smallest half-plane value ``c'`` a tilt may reach [m] (``(1 - gamma) H``).
+        travel: length of the segment along the heading the half-plane should contain [m].
+
+    Returns:
+        ``(u_along, u_lateral, c')``: the half-plane's unit direction towards the point in
+        ``(|along|, |lateral|)`` coordinates (signs as the point's), and its value [m].
+    """
+    distance = np.sqrt(along * along + lateral * lateral)
+    own = distance - reach
+    keep = reach + floor
+    with np.errstate(invalid="ignore", divide="ignore"):
+        entry = along - np.sqrt(np.maximum(keep * keep - lateral * lateral, 0.0))
+        crossing = lateral < keep
+        tangent = crossing & (travel >= entry)                        # the segment enters the disk of radius K
+        parallel = ~crossing & (along <= travel)                       # it passes o at a lateral offset >= K
+        ratio = np.where(tangent, lateral / np.where(keep > 0.0, keep, 1.0), 0.0)
+        end_along = np.maximum(along - travel, 0.0)
+        end_norm = np.sqrt(end_along * end_along + lateral * lateral)
+        end_norm_safe = np.where(end_norm > 0.0, end_norm, 1.0)
+        u_along = np.where(tangent, np.sqrt(np.maximum(1.0 - ratio * ratio, 0.0)),
+                           np.where(parallel, 0.0, end_along / end_norm_safe))
+        u_lateral = np.where(tangent, ratio, np.where(parallel, 1.0, lateral / end_norm_safe))
+    value = u_along * along + u_lateral * lateral - reach
+    # the point's own direction where no tilt is allowed (within K, or degenerate)
+    own_direction = (distance < keep) | (~tangent & ~parallel & (end_norm <= 0.0)) | (travel <= 0.0)
+    safe_distance = np.where(distance > 0.0, distance, 1.0)
+    u_along = np.where(own_direction, along / safe_distance, u_along)
+    u_lateral = np.where(own_direction, lateral / safe_distance, u_lateral)
+    value = np.where(own_direction, own, value)
+    return u_along, u_lateral, value
 
 
 def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-             lookahead: float, margin: float, kappa: float) -> Geometry:
+             lookahead: float, margin: float, kappa: float,
+             limit: Callable[[float], float] | None = None, *, drop: bool = True, floor_ratio: float = 1.0,
+             travel: float = 0.0) -> tuple[Geometry, np.ndarray]:
     """Barrier values and approach directions of every point against every body disk.
 
     Args:
@@ -117,26 +183,152 @@ def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, r
         radii: ``(D,)`` body disk radii [m].
         lookahead: look-ahead distance ``l`` of the control points [m].
         margin: clearance kept between the disks and every point [m].
-        kappa: arc coefficient ``omega_max dt / 2`` (see :func:`barrier_rows`).
+        kappa: arc coefficient ``w dt / 2``, ``w`` the fastest yaw rate within the period (see
+            :func:`barrier_rows`).
+        limit: given the smallest barrier ``H``, the largest barrier a kept pair may have [m]
+            (pairs beyond it are dropped before their directions are computed); ``None`` keeps all.
+        drop: ``False`` keeps the pairs beyond ``limit`` (untilted): the reference the cut is
+            checked against.
+        floor_ratio: ``1 - gamma``: tilted half-planes keep a value of at least
+            ``floor_ratio H`` (see :func:`slide`).
+        travel: segment along the heading the rows leave free [m] (see :func:`slide`; 0 = each
+            pair's own direction). Only pairs within ``limit`` are tilted.
+
+    Returns:
+        The kept pairs' geometry (``barrier`` the value of each pair's half-plane, at most its
+        barrier), and every point's smallest barrier over the disks ``(N,)`` [m].
     """
     control = centres + np.array([lookahead, 0.0])
-    dx = control[None, :, 0] - points[:, None, 0]
-    dy = control[None, :, 1] - points[:, None, 1]
-    distance = np.hypot(dx, dy)
+    count, disks = points.shape[0], control.shape[0]
+    if disks == 1:
+        dx = control[0, 0] - points[:, 0]
+        dy = control[0, 1] - points[:, 1]
+    else:
+        dx = (control[None, :, 0] - points[:, None, 0]).reshape(-1)
+        dy = (control[None, :, 1] - points[:, None, 1]).reshape(-1)
+    distance = np.sqrt(dx * dx + dy * dy)
+    pair_uncertainty = uncertainty if disks == 1 else np.repeat(uncertainty, disks)
+    offsets = radii + (lookahead + margin)
+    barrier = distance - (offsets[0] if disks == 1 else np.tile(offsets, count)) - pair_uncertainty
+    per_point = barrier if disks == 1 else barrier.reshape(count, disks).min(axis=1)
+    pair_point = np.arange(count) if disks == 1 else np.repeat(np.arange(count), disks)
+    disk = np.zeros(count, dtype=np.intp) if disks == 1 else np.tile(np.arange(disks), count)
+    within = None
+    if limit is not None and count:
+        within = barrier <= limit(float(per_point.min()))
+        if drop:
+            keep = np.flatnonzero(within)
+            dx, dy, distance, barrier, pair_point, disk = (array[keep] for array in
+                                                           (dx, dy, distance, barrier, pair_point, disk))
+            within = None
     degenerate = distance < 1e-9
     if degenerate.any():   # a point exactly at a control point: push it back along -x
         dx, dy, distance = np.where(degenerate, 1.0, dx), np.where(degenerate, 0.0, dy), np.where(degenerate, 1.0,
                                                                                                     distance)
-    nx, ny = dx / distance, dy / distance
-    barrier = np.where(degenerate, 0.0, distance) - (radii[None, :] + lookahead + margin + uncertainty[:, None])
-    px, py = control[None, :, 0], control[None, :, 1]
-    approach = np.stack((-nx, nx * py - ny * px), axis=-1).reshape(-1, 2)
-    reach = np.hypot(control[:, 0], control[:, 1])
-    arc = np.column_stack((np.full(control.shape[0], kappa), kappa * reach))
-    count, disks = distance.shape
-    bearing = np.arctan2(-dy, -dx).reshape(-1)
-    return Geometry(np.repeat(np.arange(count), disks), barrier.reshape(-1), approach,
-                    np.tile(arc, (count, 1)), bearing)
+        barrier = np.where(degenerate, -offsets[disk] - uncertainty[pair_point], barrier)
+    if travel > 0.0 and barrier.size:
+        # dx, dy = p - o: the point lies along the heading by -dx, to the side by -dy
+        smallest = float(per_point.min())
+        u_along, u_lateral, tilted = slide(np.abs(dx), np.abs(dy), distance - barrier, floor_ratio * smallest,
+                                           travel)
+        nx, ny = np.where(dx < 0.0, -u_along, u_along), np.where(dy < 0.0, -u_lateral, u_lateral)
+        if within is not None:   # pairs beyond the limit keep their own direction (their rows cannot bind)
+            nx, ny = np.where(within, nx, dx / distance), np.where(within, ny, dy / distance)
+            tilted = np.where(within, tilted, barrier)
+        barrier = tilted
+    else:
+        nx, ny = dx / distance, dy / distance
+    approach = np.empty((barrier.size, 2))
+    approach[:, 0] = -nx
+    approach[:, 1] = nx * control[disk, 1] - ny * control[disk, 0]
+    reach = np.sqrt(control[:, 0] ** 2 + control[:, 1] ** 2)
+    arc = np.empty((barrier.size, 2))
+    arc[:, 0] = kappa
+    arc[:, 1] = kappa * reach[disk]
+    return Geometry(pair_point, barrier, approach, arc), per_point
+
+
+def polygon_geometry(points: np.ndarray, uncertainty: np.ndarray, polygon: np.ndarray, margin: float, kappa: float,
+                     limit: Callable[[float], float] | None = None, *, drop: bool = True, floor_ratio: float = 1.0,
+                     travel: float = 0.0) -> tuple[Geometry, np.ndarray]:
+    """Barrier values and approach directions of every point against a convex footprint polygon.
+
+    The barrier is the signed distance from the polygon (counter-clockwise vertices, base
+    frame) to the point, minus the margin and the point's uncertainty. Seen from the body,
+    a rigid motion moves the point ``o`` by ``-dt (v - omega o_y, omega o_x)`` to first order,
+    and the signed distance to a convex set is convex in the point, so its linearisation at
+    ``o`` (gradient ``g``) is a lower bound: the approach rate is ``g . (v - omega o_y,
+    omega o_x)``, and the second-order remainder of the motion is at most
+    ``kappa dt (|v| + |o| |omega|)`` (the arc coefficient uses the point's distance ``|o|``
+    from the base origin). The rows of :func:`barrier_rows` then keep ``H(x+) >= (1 - gamma)
+    H(x)`` for the polygon exactly as for a disk.
+
+    Args:
+        points: ``(N, 2)`` obstacle points, base frame [m].
+        uncertainty: ``(N,)`` position uncertainty of each point [m].
+        polygon: ``(V, 2)`` the convex footprint, counter-clockwise [m].
+        margin: clearance kept between the polygon and every point [m].
+        kappa: arc coefficient ``w dt / 2`` (see :func:`geometry`).
+        limit, drop, floor_ratio: as :func:`geometry`.
+        travel: as :func:`geometry`: each point outside the polygon gets the half-plane
+            :func:`slide` picks for its nearest polygon point, if that half-plane still keeps the
+            whole polygon ``floor_ratio H`` away (checked with the polygon's support function);
+            otherwise its own.
+
+    Returns:
+        The kept points' geometry (one pair per point; ``barrier`` the value of each point's
+        half-plane), and every point's barrier ``(N,)`` [m].
+    """
+    count = points.shape[0]
+    a = polygon
+    edge = np.roll(a, -1, axis=0) - a
+    length2 = np.einsum("ij,ij->i", edge, edge)
+    normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.sqrt(length2)[:, None]   # outward (counter-clockwise)
+    relative = points[:, None, :] - a[None, :, :]                                    # (N, V, 2)
+    t = np.clip(np.einsum("nvi,vi->nv", relative, edge) / length2, 0.0, 1.0)
+    difference = relative - t[..., None] * edge[None]                                # point minus nearest edge point
+    distance = np.sqrt(np.einsum("nvi,nvi->nv", difference, difference))
+    nearest = np.argmin(distance, axis=1)
+    rows = np.arange(count)
+    plane = np.einsum("nvi,vi->nv", relative, normal)                               # signed distance to each edge line
+    inside = np.all(plane <= 0.0, axis=1)
+    deepest = np.argmax(plane, axis=1)
+    outside_distance = distance[rows, nearest]
+    signed = np.where(inside, plane[rows, deepest], outside_distance)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gradient = np.where(inside[:, None], normal[deepest],
+                            difference[rows, nearest] / outside_distance[:, None])
+    on_boundary = ~inside & (outside_distance < 1e-12)
+    if on_boundary.any():
+        gradient[on_boundary] = normal[nearest[on_boundary]]
+    barrier = signed - margin - uncertainty
+    keep, within = rows, None
+    if limit is not None and count:
+        within = barrier <= limit(float(barrier.min()))
+        if drop:
+            keep, within = np.flatnonzero(within), None
+    kept, g = points[keep], gradient[keep]
+    values = barrier[keep]
+    if travel > 0.0 and keep.size:
+        offset = difference[keep, nearest[keep]]            # o minus its nearest polygon point
+        u_along, u_lateral, _ = slide(np.abs(offset[:, 0]), np.abs(offset[:, 1]), margin + uncertainty[keep],
+                                      floor_ratio * float(barrier.min()), travel)
+        tilted = np.column_stack((np.where(offset[:, 0] < 0.0, -u_along, u_along),
+                                  np.where(offset[:, 1] < 0.0, -u_lateral, u_lateral)))
+        support = np.max(tilted @ a.T, axis=1)
+        value = np.einsum("ij,ij->i", tilted, kept) - support - margin - uncertainty[keep]
+        use = ~inside[keep] & (value >= floor_ratio * float(barrier.min()) - 1e-12) & (value <= values + 1e-12)
+        if within is not None:
+            use &= within
+        g = np.where(use[:, None], tilted, g)
+        values = np.where(use, np.minimum(value, values), values)
+    approach = np.empty((keep.size, 2))
+    approach[:, 0] = g[:, 0]
+    approach[:, 1] = g[:, 1] * kept[:, 0] - g[:, 0] * kept[:, 1]
+    arc = np.empty((keep.size, 2))
+    arc[:, 0] = kappa
+    arc[:, 1] = kappa * np.sqrt(kept[:, 0] ** 2 + kept[:, 1] ** 2)
+    return Geometry(keep, values, approach, arc), barrier
 
 
 def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
@@ -157,7 +349,9 @@ def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, small
     Why: ``||.||`` is convex, so ``h(x+) >= h(x) + n . delta`` for the displacement
     ``delta`` of the control point, and the exact displacement of a unicycle holding a
     velocity for ``dt`` differs from ``dt J w`` by at most ``kappa dt (|v| + ||p|| |omega|)``
-    with ``kappa = omega_max dt / 2`` (the heading turns by at most ``omega_max t``). The row
+    with ``kappa = w dt / 2``, ``w`` the fastest yaw rate within the period (the heading turns by
+    at most ``w t``; the filter takes ``w`` over the box of reachable commands and the current
+    velocity, ``omega_max`` without a velocity). The row
     ``a . w + kappa (t_v + ||p|| t_omega) <= (h - (1 - gamma) H) / dt`` is that bound.
 
     Assumption: the world is static over the period, the points are where the scan says
@@ -187,7 +381,7 @@ def stopping_speed(barrier: np.ndarray, accel: float, reaction: float) -> np.nda
     return np.sqrt((accel * reaction) ** 2 + 2.0 * accel * reach) - accel * reaction
 
 
-def braking_rows(geo: Geometry, accel: float, reaction: float) -> Rows:
+def braking_rows(geo: Geometry, accel: float, reaction: float, allowance: float = 0.0) -> Rows:
     """Approach speed caps that keep braking possible, one row per pair (soft; needs the velocity).
 
     Invariant: the approach rate of every control point towards every point stays below the
@@ -198,38 +392,65 @@ def braking_rows(geo: Geometry, accel: float, reaction: float) -> Rows:
 
     Assumption: the base decelerates at ``a_max`` once commanded to, after at most
     ``reaction`` = one period plus its lag time constant.
+
+    ``allowance`` [m] (the range-noise part of the margin) is added to every barrier: the
+    base stays able to stop before the margin less the allowance, so that noise that puts a
+    reading just inside the margin does not forbid every approach (the barrier rows still
+    push the base back out of the margin).
     """
     everything = np.ones(geo.barrier.size, dtype=bool)
-    return _rows(_approach_block(geo, everything), stopping_speed(geo.barrier, accel, reaction), geo.point,
-                 "braking")
+    return _rows(_approach_block(geo, everything), stopping_speed(geo.barrier + allowance, accel, reaction),
+                 geo.point, "braking")
 
 
-def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, dt: float, reaction: float
-               ) -> Rows:
+def braking_swing(velocity: np.ndarray, alpha: float, dt: float, reaction: float) -> float:
+    """Largest heading change [rad] from now until a braking base has stopped turning.
+
+    Within the period the yaw rate reaches at most ``w = |omega| + alpha dt``; it holds (at
+    most) ``w`` for the ``reaction`` time and then decelerates at ``alpha``:
+    ``Delta = w reaction + w^2 / (2 alpha)``.
+
+    Args:
+        velocity: the base's velocity now ``(v, omega)`` [m/s, rad/s].
+        alpha: yaw acceleration limit [rad/s^2].
+        dt: the period [s].
+        reaction: time before a braking command takes effect [s].
+    """
+    rate = abs(float(velocity[1])) + alpha * dt
+    return rate * reaction + rate * rate / (2.0 * alpha)
+
+
+def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, dt: float, reaction: float,
+               allowance: float = 0.0) -> Rows:
     """Speed caps along the heading for points the heading can still swing towards (soft; needs the velocity).
 
-    While the base brakes its heading keeps turning, by at most
-    ``Delta = (|omega| + alpha dt)(|v| / a + reaction)``. A point within ``Delta`` of the
+    While the base brakes its heading keeps turning, by at most ``Delta``
+    (:func:`braking_swing`). A point within ``Delta`` of the
     heading (or of the reverse heading) may come to lie straight ahead before the base
     stops, so the speed along the heading is capped as if the base already faced it:
     ``sign v cos(max(|bearing| - Delta, 0)) + arc terms <= stopping_speed(h)``.
 
     Assumption: as :func:`braking_rows`; the yaw rate decelerates at ``alpha_max``.
+    ``allowance``: as :func:`braking_rows`.
     """
-    sweep = (abs(velocity[1]) + alpha * dt) * (abs(velocity[0]) / accel + reaction)
-    limit = stopping_speed(geo.barrier, accel, reaction)
+    sweep = braking_swing(velocity, alpha, dt, reaction)
+    limit = stopping_speed(geo.barrier + allowance, accel, reaction)
+    forward = geo.approach[:, 0]                 # cos of the bearing from the control point
     blocks = []
-    for sign, off_axis in ((1.0, np.abs(geo.bearing)), (-1.0, math.pi - np.abs(geo.bearing))):
-        effective = np.maximum(off_axis - sweep, 0.0)
-        inside = np.flatnonzero(effective < 0.5 * math.pi - 1e-6)
+    for sign, cosine in ((1.0, forward), (-1.0, -forward)):
+        # cos(max(acos(cosine) - sweep, 0)), without trigonometry per point
+        effective = np.where(cosine >= math.cos(min(sweep, math.pi)), 1.0,
+                             cosine * math.cos(sweep) + np.sqrt(np.maximum(1.0 - cosine * cosine, 0.0)) *
+                             math.sin(sweep))
+        inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(cosine.size)
         G = np.zeros((inside.size, 4))
-        G[:, 0] = sign * np.cos(effective[inside])
+        G[:, 0] = sign * np.minimum(effective[inside], 1.0)
         G[:, 2:] = geo.arc[inside]
         blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
     return stack(*blocks)
 
 
-def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float) -> Rows:
+def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0) -> Rows:
     """The rows written for every mean velocity a base between ``velocity`` and the command can have.
 
     Over a period the base's velocity moves from ``velocity`` (``w0``) towards the command
@@ -241,7 +462,7 @@ def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float) -> Rows:
     """
     if velocity is None or lag <= 0.0 or not len(rows):
         return rows
-    blocks = [rows]
+    blocks = [rows if headroom <= 0.0 else Rows(rows.G, rows.h - headroom * np.abs(rows.h), rows.point, rows.family)]
     for b_v, b_omega in ((lag, 0.0), (0.0, lag), (lag, lag)):
         G = rows.G.copy()
         G[:, 0] *= 1.0 - b_v

