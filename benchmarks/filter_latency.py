@@ -7,13 +7,28 @@ run, the straightforward way as a baseline: every one of the 720 points as a
 constraint, ``qpsolvers.solve_qp(..., solver="osqp")`` set up on every call.
 Optionally the same on every scan of the real recordings in ``shared/data/lidar``.
 
-Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``).
+``--deadline`` adds the closed-loop scenario of issue 18 (real time at every control
+period): a wall just out of the path and a full-speed turning nominal, in an analytic
+simulator of this module (exact ray casting, the exact unicycle in sub-steps, a base
+ramping at its acceleration limits, the lidar's range noise), so that the time measured
+is the filter's. Every preset, both filters (the CBF given the velocity), ``dt`` 0.02,
+0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
+the MPC's compute budget (half a period) and longer than the period, the CPU time of the
+calls (which a busy machine's scheduling does not inflate), and the MPC's solving calls
+apart; the straightforward baseline timed on the CBF's own scans of the same run.
+
+Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``)::
+
+    python -m benchmarks.filter_latency --deadline --json latency.json
+    python benchmarks/filter_latency.py --deadline --only-deadline
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import math
+import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -21,12 +36,15 @@ from typing import Any
 import numpy as np
 import qpsolvers
 
+if __package__ in (None, ""):  # run as a script: make the repository importable
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+
 from benchmarks.common import markdown_table, summary, write_json
-from safenav.filters import CBFSafetyFilter, FilterStatus, SafetyFilter, available_solvers
-from safenav.geometry import Pose2D
-from safenav.robot import RobotSpec, preset
+from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter, SafetyFilter, available_solvers
+from safenav.geometry import Pose2D, unicycle_step
+from safenav.robot import PRESET_NAMES, RobotSpec, preset
 from safenav.scan import LaserScan
-from safenav.synthetic import synthetic_scan
+from safenav.synthetic import Scene, Segment, synthetic_scan
 from safenav.worlds import random_world
 
 DT = 0.05
@@ -96,7 +114,7 @@ def time_baseline(solve: Callable[[np.ndarray, LaserScan], Any], cases: Sequence
         start = time.perf_counter()
         solve(u_nom, scan)
         samples.append(time.perf_counter() - start)
-    return {"end_to_end": summary(samples)}
+    return {"end_to_end": summary(samples), "samples_s": samples}
 
 
 def real_recordings(robot: RobotSpec, solver: str, per_scan: int, seed: int) -> list[dict[str, Any]]:
@@ -162,6 +180,120 @@ def closed_loop(filters: Sequence[str], seeds: int, duration: float = 20.0) -> l
     return rows
 
 
+DEADLINE_PERIODS = (0.02, 0.05, 0.1)
+"""Control periods of the closed-loop deadline scenario [s]."""
+WALL_GAPS = (0.06, 0.12, 0.2, 0.35)
+"""How far the wall beside the path is from the body disk at the start [m]."""
+DEADLINE_DURATION = 6.0
+"""Simulated time of each episode of the deadline scenario [s]."""
+
+
+def tail(samples_s: Sequence[float], dt: float, budget: float) -> dict[str, float]:
+    """Median, p99, p99.9 and max [us], and the shares of samples over ``budget`` and over ``dt``."""
+    values = np.asarray(samples_s, dtype=float)
+    if values.size == 0:
+        nan = float("nan")
+        return {"n": 0, "median_us": nan, "p99_us": nan, "p999_us": nan, "max_us": nan, "over_budget": nan,
+                "over_period": nan}
+    return {"n": int(values.size), "median_us": float(np.median(values) * 1e6),
+            "p99_us": float(np.percentile(values, 99) * 1e6), "p999_us": float(np.percentile(values, 99.9) * 1e6),
+            "max_us": float(values.max() * 1e6), "over_budget": float(np.mean(values > budget)),
+            "over_period": float(np.mean(values > dt))}
+
+
+def wall_episodes(robot: RobotSpec, dt: float, make: Callable[[], SafetyFilter], seed: int,
+                  on_call: Callable[[LaserScan, float, Any], None]) -> None:
+    """Issue 18's closed loop: a wall just out of the path on either side, the nominal turning into it
+    at full speed. ``on_call(scan, cpu_seconds, result)`` sees every call and the CPU time it took."""
+    rng = np.random.default_rng(seed)
+    noise = robot.lidar.noise_std
+    for gap in WALL_GAPS:
+        for side in (1.0, -1.0):
+            y = side * (robot.radius + gap)
+            scene = Scene.of(Segment((0.16, y), (4.0, y)))
+            safety = make()
+            pose, velocity = Pose2D(), np.zeros(2)
+            nominal = np.array([robot.v_max, side * robot.omega_max])
+            for _ in range(round(DEADLINE_DURATION / dt)):
+                scan = synthetic_scan(robot, scene, pose, noise_std=noise, rng=rng)
+                started = time.process_time()
+                result = safety.filter(nominal, scan, velocity=velocity)
+                on_call(scan, time.process_time() - started, result)
+                for _ in range(10):
+                    velocity = robot.clip(result.u, velocity, dt / 10)
+                    pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt / 10)
+
+
+class DeadlineRecorder:
+    """Every call's time and status in the deadline scenario, and the first scans (for the baseline)."""
+
+    def __init__(self, keep_scans: int) -> None:
+        self.calls: list[float] = []
+        self.cpu: list[float] = []
+        self.solving: list[float] = []
+        self.solver: list[float] = []
+        self.statuses: dict[str, int] = {}
+        self.scans: list[LaserScan] = []
+        self.keep_scans = keep_scans
+
+    def __call__(self, scan: LaserScan, cpu: float, result: Any) -> None:
+        self.calls.append(result.filter_time)
+        self.cpu.append(cpu)
+        if result.solver and result.solve_time > 0.0:
+            self.solving.append(result.filter_time)
+            self.solver.append(result.solve_time)
+        self.statuses[result.status.value] = self.statuses.get(result.status.value, 0) + 1
+        if len(self.scans) < self.keep_scans:
+            self.scans.append(scan)
+
+
+def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int) -> list[dict[str, Any]]:
+    """Per robot, period and filter: every call's time in issue 18's closed loop (see the module docstring)."""
+    rows = []
+    makers: dict[str, Callable[[RobotSpec, float], SafetyFilter]] = {
+        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": lambda robot, dt: MPCSafetyFilter(robot, dt)}
+    for name in robots:
+        robot = preset(name)
+        for dt in dts:
+            budget = MPCSafetyFilter(robot, dt).budget
+            for filter_name, maker in makers.items():
+                recorder = DeadlineRecorder(keep_scans=400 if filter_name == "cbf" else 0)
+                maker(robot, dt)    # builds (and caches) what is built once per shape, outside the timed calls
+                wall_episodes(robot, dt, functools.partial(maker, robot, dt), seed, recorder)
+                row = {"robot": name, "dt": dt, "filter": filter_name, "budget_s": budget,
+                       "calls": tail(recorder.calls, dt, budget), "cpu": tail(recorder.cpu, dt, budget),
+                       "solving_calls": tail(recorder.solving, dt, budget),
+                       "solver": tail(recorder.solver, dt, budget),
+                       "solving_share": len(recorder.solving) / max(len(recorder.calls), 1),
+                       "statuses": recorder.statuses}
+                if filter_name == "cbf":
+                    baseline = straightforward_cbf(CBFSafetyFilter(robot, dt))
+                    rng = np.random.default_rng(seed)
+                    cases = [(scan, rng.uniform(robot.lower, robot.upper)) for scan in recorder.scans]
+                    row["baseline"] = tail(time_baseline(baseline, cases)["samples_s"], dt, budget)
+                rows.append(row)
+                print(f"  {name} dt={dt} {filter_name}: {len(recorder.calls)} calls, median "
+                      f"{row['calls']['median_us']:.0f} us, max {row['calls']['max_us']:.0f} us", flush=True)
+    return rows
+
+
+def deadline_table(rows: Sequence[dict[str, Any]]) -> str:
+    table = []
+    for row in rows:
+        calls, solving = row["calls"], row["solving_calls"]
+        ratio = row["baseline"]["median_us"] / calls["median_us"] if "baseline" in row else float("nan")
+        cpu = row["cpu"]
+        table.append([row["robot"], row["dt"], row["filter"], calls["n"], calls["median_us"], calls["p99_us"],
+                      calls["p999_us"], calls["max_us"], f"{100 * calls['over_budget']:.1f}%",
+                      f"{100 * calls['over_period']:.1f}%", f"{cpu['median_us']:.0f} / {cpu['p99_us']:.0f} / "
+                      f"{cpu['max_us']:.0f}", f"{100 * row['solving_share']:.0f}%",
+                      solving["median_us"], solving["p99_us"], solving["max_us"],
+                      f"{ratio:.1f}x" if math.isfinite(ratio) else "–"])
+    return markdown_table(["robot", "dt [s]", "filter", "calls", "median µs", "p99 µs", "p99.9 µs", "max µs",
+                           "over dt/2", "over dt", "CPU median / p99 / max µs", "solving", "solving median µs",
+                           "solving p99 µs", "solving max µs", "baseline / median"], table)
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -182,16 +314,35 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                         help="filters for --closed-loop (default: cbf,mpc)")
     parser.add_argument("--closed-loop-seeds", type=int, default=4,
                         help="seeds per cell for --closed-loop (default: 4)")
+    parser.add_argument("--deadline", action="store_true",
+                        help="also run issue 18's closed loop (wall beside the path, full-speed turning nominal) "
+                             "at every period, preset and filter")
+    parser.add_argument("--only-deadline", action="store_true", help="run the deadline scenario alone")
+    parser.add_argument("--deadline-robots", default=",".join(PRESET_NAMES),
+                        help="presets of the deadline scenario (default: all)")
+    parser.add_argument("--deadline-dts", default=",".join(str(dt) for dt in DEADLINE_PERIODS),
+                        help="control periods of the deadline scenario [s] (default: 0.02,0.05,0.1)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     args = parser.parse_args(argv)
+
+    results: dict[str, Any] = {"config": vars(args)}
+    if args.deadline or args.only_deadline:
+        print("issue 18's closed loop (wall beside the path, full-speed turning nominal, ramping base):", flush=True)
+        results["deadline"] = deadline_scenario(args.deadline_robots.split(","),
+                                                [float(dt) for dt in args.deadline_dts.split(",")], args.seed)
+        print()
+        print(deadline_table(results["deadline"]))
+        if args.only_deadline:
+            write_json(args.json, results)
+            return 0
 
     robot = preset(args.robot)
     cases = cluttered_cases(robot, args.scenes, args.per_scene, args.seed)
     points = [len(scan.points()) for scan, _ in cases[:: args.per_scene]]
     print(f"{len(cases)} calls on {args.scenes} cluttered scenes, {robot.lidar.n_beams} beams "
           f"({int(np.median(points))} obstacle points median), robot {robot.name}, dt {DT} s")
-    results: dict[str, Any] = {"config": vars(args), "cbf": {}}
+    results["cbf"] = {}
     for solver in args.solvers.split(","):
         filt = CBFSafetyFilter(robot, DT, solver=solver)
         time_filter(filt, cases[:200])  # warm-up
@@ -210,8 +361,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                  base, results["baseline"]["end_to_end"]["p99_us"], float("nan"), float("nan"), "100%", "1.0x"])
 
     if args.mpc:
-        from safenav.filters.mpc import MPCSafetyFilter
-
         mpc = MPCSafetyFilter(robot, DT)
         mpc_cases = cases[: args.mpc_calls]
         time_filter(mpc, mpc_cases[:50])

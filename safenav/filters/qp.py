@@ -1,6 +1,8 @@
-"""QP back-ends for the filters: any qpsolvers solver by name, and OSQP with a persistent workspace.
+"""QP back-ends for the filters: any qpsolvers solver by name, DAQP called directly, and OSQP with a
+persistent workspace. One interface serves both filters: the CBF solves one QP per call, the MPC one
+QP per iteration of its sequential quadratic programming (:mod:`safenav.filters.mpc.sqp`).
 
-Every back-end takes a :class:`QPData` (``min 1/2 x'Px + q'x`` s.t. ``Gx <= h``,
+Every back-end takes a :class:`QPData` (``min 1/2 x'Px + q'x`` s.t. ``h_lower <= Gx <= h``,
 ``lb <= x <= ub``, the same QP as :meth:`QPData.problem`'s :class:`qpsolvers.Problem`)
 and returns the solution vector or ``None``. The caller checks the answer against
 the constraints itself: qpsolvers returns ``None`` on failure, and OSQP can report
@@ -34,6 +36,8 @@ TIGHT_OPTIONS: dict[str, dict[str, float]] = {"daqp": {"primal_tol": 1e-10}, "pr
 
 #: Row count a persistent OSQP workspace starts with; it grows (set-up again) when exceeded.
 OSQP_INITIAL_CAPACITY = 64
+#: DAQP's constraint-type flags (see ``daqp.solve``): active (a warm start), at the lower bound, equality.
+DAQP_ACTIVE, DAQP_LOWER, DAQP_EQUALITY = 1, 2, 5
 
 
 class QPOutcome(NamedTuple):
@@ -45,13 +49,20 @@ class QPOutcome(NamedTuple):
     """The solver's own status word."""
     solve_time: float
     """Wall time of the solve [s]."""
+    active: np.ndarray | None = None
+    """Which constraints hold with a nonzero multiplier, simple bounds first, then the rows: 1 at
+    the upper bound, -1 at the lower bound, 0 inactive (``None`` when the back-end does not say)."""
 
 
 class QPData(NamedTuple):
-    """A QP ``min 1/2 x'Px + q'x`` s.t. ``Gx <= h``, ``lb <= x <= ub`` as plain arrays.
+    """A QP ``min 1/2 x'Px + q'x`` s.t. ``h_lower <= Gx <= h``, ``lb <= x <= ub`` as plain arrays.
 
     The filters hand this to their back-end on every call; :meth:`problem` turns it into
     the equivalent :class:`qpsolvers.Problem` for inspection or for qpsolvers back-ends.
+    ``h_lower`` (``None``: no lower bound, the CBF's one-sided rows) gives two-sided rows;
+    a row with ``h_lower == h`` is an equality. ``guess`` is a warm start of the active set
+    in the encoding of :attr:`QPOutcome.active` (a solve of a similar QP); back-ends that
+    cannot use one ignore it, and it never changes the answer, only the work.
     """
 
     P: np.ndarray
@@ -60,10 +71,35 @@ class QPData(NamedTuple):
     h: np.ndarray
     lb: np.ndarray
     ub: np.ndarray
+    h_lower: np.ndarray | None = None
+    guess: np.ndarray | None = None
+
+    def one_sided(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rows as ``G' x <= h'`` only: each finite lower bound becomes a row ``-G x <= -h_lower``."""
+        if self.h_lower is None:
+            return self.G, self.h
+        bounded = np.isfinite(self.h_lower)
+        return np.vstack((self.G, -self.G[bounded])), np.concatenate((self.h, -self.h_lower[bounded]))
 
     def problem(self) -> qpsolvers.Problem:
-        """The same QP as a :class:`qpsolvers.Problem`."""
-        return qpsolvers.Problem(self.P, self.q, self.G, self.h, lb=self.lb, ub=self.ub)
+        """The same QP as a :class:`qpsolvers.Problem`.
+
+        Two-sided rows become two one-sided ones, and equalities (rows or bounds with equal
+        limits) the rows ``A x = b``: active-set solvers such as quadprog fail on an equality
+        written as two opposite inequalities.
+        """
+        if self.h_lower is None and not np.any(self.lb == self.ub):
+            return qpsolvers.Problem(self.P, self.q, self.G, self.h, lb=self.lb, ub=self.ub)
+        equal_rows = np.zeros(self.h.size, dtype=bool) if self.h_lower is None else self.h_lower == self.h
+        fixed = self.lb == self.ub
+        rest = self._replace(G=self.G[~equal_rows], h=self.h[~equal_rows],
+                             h_lower=None if self.h_lower is None else self.h_lower[~equal_rows])
+        G, h = rest.one_sided()
+        A = np.vstack((self.G[equal_rows], np.eye(self.lb.size)[fixed]))
+        b = np.concatenate((self.h[equal_rows], self.lb[fixed]))
+        lb, ub = np.where(fixed, -np.inf, self.lb), np.where(fixed, np.inf, self.ub)
+        return qpsolvers.Problem(self.P, self.q, G if G.size else None, h if h.size else None,
+                                 A if A.size else None, b if b.size else None, lb=lb, ub=ub)
 
 
 class QPBackend(Protocol):
@@ -182,6 +218,8 @@ class PersistentOSQP:
         lower[:n_vars] = qp.lb
         upper[:n_vars] = qp.ub
         upper[n_vars:n_vars + m] = h
+        if qp.h_lower is not None:
+            lower[n_vars:n_vars + m] = qp.h_lower
         solver.update(q=qp.q, l=lower, u=upper, Px=np.diag(P).copy(), Ax=Ax)
         result = solver.solve(raise_error=False)
         if not self._acceptable(result, qp):
@@ -203,7 +241,8 @@ class PersistentOSQP:
         x = np.asarray(result.x, dtype=float)
         if result.info.status_val != 1 or x.shape != qp.q.shape or not np.all(np.isfinite(x)):
             return False
-        return bool(np.all(qp.G @ x <= qp.h + tolerance) and np.all(x >= qp.lb - tolerance)
+        G, h = qp.one_sided()
+        return bool(np.all(G @ x <= h + tolerance) and np.all(x >= qp.lb - tolerance)
                     and np.all(x <= qp.ub + tolerance))
 
 
@@ -211,34 +250,46 @@ class DirectDAQP:
     """DAQP called through its own Python API, skipping qpsolvers' per-call conversions.
 
     Same answers as ``QpsolversBackend("daqp")`` (the latency benchmark compares both);
-    used by default because the filters call it at every control step.
+    used by default because the filters call it at every control step. Two-sided rows go
+    to DAQP as they are (one row, not two), and rows with equal bounds as equalities.
 
     Args:
         primal_tol: feasibility tolerance of the active-set iterations.
+        iter_limit: largest number of active-set iterations per solve.
     """
 
     name = "daqp"
     direct_rows = 512
 
-    def __init__(self, primal_tol: float = 1e-10) -> None:
+    def __init__(self, primal_tol: float = 1e-10, iter_limit: int = 2000) -> None:
         import daqp  # imported here: only this back-end needs it
 
         self._solve = daqp.solve
         self.primal_tol = primal_tol
+        self.iter_limit = iter_limit
 
     def solve(self, qp: QPData) -> QPOutcome:
         start = time.perf_counter()
         n_rows = qp.G.shape[0]
         # Simple bounds first, then the rows (DAQP's convention); +-1e30 stands for infinity.
         upper = np.minimum(np.concatenate((qp.ub, qp.h)), 1e30)
-        lower = np.concatenate((np.maximum(qp.lb, -1e30), np.full(n_rows, -1e30)))
-        x, _, exitflag, _ = self._solve(qp.P, qp.q, qp.G, upper, lower, np.zeros(upper.size, dtype=np.int32),
-                                        primal_tol=self.primal_tol)
+        row_lower = np.full(n_rows, -1e30) if qp.h_lower is None else np.maximum(qp.h_lower, -1e30)
+        lower = np.concatenate((np.maximum(qp.lb, -1e30), row_lower))
+        sense = np.zeros(upper.size, dtype=np.int32)
+        if qp.guess is not None:   # DAQP's flags: 1 active (warm start), 2 at the lower bound
+            sense[qp.guess != 0] = DAQP_ACTIVE
+            sense[qp.guess < 0] |= DAQP_LOWER
+        sense[lower == upper] = DAQP_EQUALITY
+        # DAQP takes writable C-ordered float arrays (it copies nothing); copy only what is not.
+        P, q, G = (array if array.flags.writeable and array.flags.c_contiguous and array.dtype == np.float64
+                   else np.array(array, dtype=np.float64) for array in (qp.P, qp.q, qp.G))
+        x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
+                                           iter_limit=self.iter_limit)
         elapsed = time.perf_counter() - start
         # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
         if exitflag not in (1, 2) or not np.isfinite(x).all():
             return QPOutcome(None, f"exitflag {exitflag}", elapsed)
-        return QPOutcome(x, "optimal", elapsed)
+        return QPOutcome(x, "optimal", elapsed, np.sign(info["lam"]).astype(np.int8))
 
 
 def make_backend(name: str) -> QPBackend:

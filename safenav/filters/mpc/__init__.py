@@ -1,27 +1,36 @@
-"""The predictive (MPC) safety filter, as a package: settings, plan model, NLP, filter.
+"""The predictive (MPC) safety filter, as a package: settings, plan model, NLP and its solvers, filter.
 
 ==============  ================================================================
 module          what it owns
 ==============  ================================================================
-``config``      :class:`MPCConfig`, the solvers casadi offers here
-``plan``        :class:`BaseModel` (how the base follows commands), :class:`MPCProblem`, checks
-``nlp``         the casadi NLP, built once per shape, and its solver back-end
+``config``      :class:`MPCConfig`, the solvers the filter can use
+``plan``        :class:`PlanLayout` (which commands are chosen), :class:`BaseModel` (how the
+                base follows commands), :class:`MPCProblem`, checks
+``nlp``         casadi: the plan model and its Jacobian (:class:`PlanModel`), the reference NLP
+``sqp``         the NLP (:class:`PlanNLP`) and its fast solver (:class:`DirectSQP`)
 ``filter``      :class:`MPCSafetyFilter`
 ==============  ================================================================
 """
 
 from safenav.filters.mpc.config import MPCConfig, available_mpc_solvers
 from safenav.filters.mpc.filter import MPCSafetyFilter
-from safenav.filters.mpc.nlp import CasadiBackend, SolveOutcome
-from safenav.filters.mpc.plan import BaseModel, MPCProblem, PlanCheck
+from safenav.filters.mpc.nlp import CasadiNLP, PlanModel
+from safenav.filters.mpc.plan import BaseModel, MPCProblem, PlanCheck, PlanLayout
+from safenav.filters.mpc.sqp import DirectSQP, NLPOutcome, PlanCost, PlanNLP, PlanSolver
 
 __all__ = [
     "BaseModel",
-    "CasadiBackend",
+    "CasadiNLP",
+    "DirectSQP",
     "MPCConfig",
     "MPCProblem",
     "MPCSafetyFilter",
+    "NLPOutcome",
     "PlanCheck",
-    "SolveOutcome",
+    "PlanCost",
+    "PlanLayout",
+    "PlanModel",
+    "PlanNLP",
+    "PlanSolver",
     "available_mpc_solvers",
 ]

@@ -11,23 +11,55 @@ import casadi
 from safenav import _checks
 from safenav.errors import UnknownName
 from safenav.filters.defaults import default_margin, default_weights
+from safenav.filters.qp import available_solvers
 from safenav.robot import RobotSpec
 
-__all__ = ["CONIC_PLUGINS", "DEFAULT_HORIZON", "HESSIANS", "MPCConfig", "available_mpc_solvers"]
+__all__ = [
+    "BODIES",
+    "BUDGET_FRACTION",
+    "CONIC_PLUGINS",
+    "DEFAULT_COMMANDS",
+    "DEFAULT_HORIZON_TIME",
+    "HESSIANS",
+    "MPCConfig",
+    "available_mpc_solvers",
+]
 
-#: Horizon used unless the robot needs more steps to stop from its velocity limits.
-DEFAULT_HORIZON = 20
-#: QP solvers casadi's ``sqpmethod`` can use here, in order of preference.
+#: Plan length [s] unless the robot needs longer to stop from its velocity limits.
+DEFAULT_HORIZON_TIME = 1.0
+#: Commands the optimiser chooses at most; a longer plan (a short ``dt``) interpolates between them.
+DEFAULT_COMMANDS = 20
+#: Default compute budget of one call, as a share of the period ``dt``.
+BUDGET_FRACTION = 0.5
+#: Default point slots of the direct SQP and of the casadi solvers.
+DIRECT_POINTS, CASADI_POINTS = 64, 32
+#: casadi QP plugins the reference ``sqpmethod`` can use here, in order of preference.
 CONIC_PLUGINS = ("daqp", "qrqp", "osqp", "qpoases", "hpipm", "proxqp", "highs")
 HESSIANS = ("gauss-newton", "exact")
+BODIES = ("disk", "cover")
 
 
 def available_mpc_solvers() -> list[str]:
-    """Solver names :class:`MPCConfig` accepts on this machine (casadi QP plugins, and ``"ipopt"``)."""
-    names = [name for name in CONIC_PLUGINS if casadi.has_conic(name)]
+    """Solver names :class:`MPCConfig` accepts on this machine.
+
+    The QP back-ends of the direct SQP (:func:`safenav.filters.qp.available_solvers`, and
+    ``"qpsolvers:<name>"``), the casadi reference ``"sqpmethod"`` / ``"sqpmethod:<plugin>"``,
+    and ``"ipopt"``.
+    """
+    names = list(available_solvers())
+    plugins = [name for name in CONIC_PLUGINS if casadi.has_conic(name)]
+    if plugins:
+        names += ["sqpmethod", *(f"sqpmethod:{plugin}" for plugin in plugins)]
     if casadi.has_nlpsol("ipopt"):
         names.append("ipopt")
     return names
+
+
+def _is_known_solver(name: str) -> bool:
+    qp_names = available_solvers()
+    if name in qp_names or (name.startswith("qpsolvers:") and name.partition(":")[2] in qp_names):
+        return True
+    return name in available_mpc_solvers()
 
 
 @dataclass(frozen=True)
@@ -37,23 +69,42 @@ class MPCConfig:
     :meth:`resolve` fills every robot-derived default in.
 
     Attributes:
-        horizon: number of planned commands ``N``; default ``max(20, steps to stop from the
-            velocity limits + 1)``.
+        horizon_time: length of a plan [s]; default ``max(1 s, time to stop from the velocity
+            limits + dt)``. The plan has one command per period (``ceil(horizon_time / dt)``).
+        max_commands: the most commands the optimiser chooses; a plan with more periods (a short
+            ``dt``) interpolates linearly between them (move blocking). Clearance is still
+            required at the end of every period.
         margin: clearance kept between the body and every obstacle point [m]; default as the CBF's.
-        buffer: extra distance the plan keeps beyond the guaranteed radius [m], so that a base
-            that moves differently from the model, or range noise between scans, does not make
-            the next problem need slack; default ``e_act + 2 noise_std``.
-        n_points: obstacle-point slots ``K`` of the optimiser (each gives one row per step);
-            the plan is checked against every point in reach, and missed points are swapped in.
-        solver: ``"daqp"`` (default) or another casadi QP plugin for ``sqpmethod``
-            (``"qrqp"``, ``"osqp"``, ``"qpoases"``, ...), or ``"ipopt"``; case-insensitive.
-        hessian: ``"gauss-newton"`` (the cost's own: constant, positive definite) or ``"exact"``.
+        buffer: extra distance the plan aims to keep beyond the guaranteed radius [m], so that a
+            base that moves differently from the model, or range noise between scans, does not
+            make the next problem need slack; default ``e_act + 2 noise_std``. The plan may use
+            it at a cost (a narrow door), never the guaranteed radius.
+        buffer_cost: cost of using the whole buffer, relative to the cost of the first command
+            braking from full speed to a stop (quadratic in the share used).
+        body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the
+            footprint, :meth:`~safenav.filters.body.BodyModel.cover`).
+        n_disks: disks of the cover.
+        n_points: the most obstacle points the optimiser sees at once (its slots; the nearest per
+            angular bin); the plan is checked against every point in reach, and missed points are
+            swapped in. Default: 64 for the direct SQP (it passes only the rows that can bind to
+            each QP; 64 slots rarely need a swap, and cost less per iteration than every point in
+            reach), 32 for the casadi solvers (each slot is a row per disk and knot of their NLP).
+        solver: ``"daqp"`` (default: the direct SQP with DAQP), another QP back-end of the direct
+            SQP (``"quadprog"``, ``"osqp"``, ``"qpsolvers:daqp"``, ...), ``"sqpmethod"`` (the
+            reference: casadi's SQP; ``"sqpmethod:qpoases"`` picks its QP plugin), or ``"ipopt"``;
+            case-insensitive.
+        hessian: of the casadi solvers: ``"gauss-newton"`` (the cost's own, as the direct SQP)
+            or ``"exact"``.
         weights: cost weights on the deviation of the first command from ``u_nom``
             [s^2/m^2, s^2/rad^2]; default ``(1 / v_max^2, 0.2 / omega_max^2)`` as the CBF filter.
-        regularisation: weight of the later commands' magnitudes relative to ``weights``.
+        tracking: weight of the later commands' deviations from the nominal held along the plan,
+            in all, relative to the first command's (0: only the first command counts).
         slack_weight: linear and quadratic cost of the relaxation of the clearance rows [1/m, 1/m^2].
         max_iter: SQP iterations per solve.
         max_rounds: solves with missed points swapped into the slots before the call counts as failed.
+        budget: compute budget of one call [s] (``math.inf``: none); default ``BUDGET_FRACTION * dt``.
+            When a solve would end after it, the filter follows its last verified plan (status
+            ``FALLBACK``, reason ``deadline``).
         max_gap: widest run of invalid beams bridged by its neighbours [rad]; wider runs are unknown.
         side_tolerance: unknown space this close to exactly sideways does not block motion [rad].
         time_constant: first-order lag of the base's velocity loop [s]: the plan models the
@@ -67,17 +118,22 @@ class MPCConfig:
         compensate_latency: move a scan of known age into the current base frame first.
     """
 
-    horizon: int | None = None
+    horizon_time: float | None = None
+    max_commands: int = DEFAULT_COMMANDS
     margin: float | None = None
     buffer: float | None = None
-    n_points: int = 32
+    buffer_cost: float = 1.0
+    body: str = "disk"
+    n_disks: int = 3
+    n_points: int | None = None
     solver: str = "daqp"
     hessian: str = "gauss-newton"
     weights: tuple[float, float] | None = None
-    regularisation: float = 1e-2
+    tracking: float = 1.0
     slack_weight: float = 1e4
     max_iter: int = 30
     max_rounds: int = 4
+    budget: float | None = None
     max_gap: float = math.radians(5.0)
     side_tolerance: float = math.radians(5.0)
     time_constant: float = 0.0
@@ -89,23 +145,30 @@ class MPCConfig:
 
     def __post_init__(self) -> None:
         name = "MPCConfig."
-        if self.horizon is not None:
-            _checks.integer(name + "horizon", self.horizon, low=2, high=400)
+        if self.horizon_time is not None:
+            _checks.number(name + "horizon_time", self.horizon_time, low=0.0, high=10.0, low_open=True)
+        _checks.integer(name + "max_commands", self.max_commands, low=2, high=400)
         if self.margin is not None:
             _checks.number(name + "margin", self.margin, low=0.0, high=10.0)
         if self.buffer is not None:
             _checks.number(name + "buffer", self.buffer, low=0.0, high=1.0)
-        _checks.integer(name + "n_points", self.n_points, low=1, high=2000)
-        solvers = available_mpc_solvers()
-        if not isinstance(self.solver, str) or self.solver.lower() not in solvers:
-            raise UnknownName("MPC solver", self.solver, solvers, hint="casadi QP plugins for sqpmethod, or ipopt")
+        _checks.number(name + "buffer_cost", self.buffer_cost, low=0.0, high=1e9, low_open=True)
+        _checks.choice("MPC body model", self.body, BODIES)
+        _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
+        if self.n_points is not None:
+            _checks.integer(name + "n_points", self.n_points, low=1, high=2000)
+        if not isinstance(self.solver, str) or not _is_known_solver(self.solver.lower()):
+            raise UnknownName("MPC solver", self.solver, available_mpc_solvers(),
+                              hint="QP back-ends of the direct SQP, casadi's sqpmethod (the reference), or ipopt")
         _checks.choice("MPC Hessian", self.hessian, HESSIANS)
         if self.weights is not None:
             _checks.pair(name + "weights", self.weights, low=0.0, low_open=True)
-        _checks.number(name + "regularisation", self.regularisation, low=1e-9, high=1.0)
+        _checks.number(name + "tracking", self.tracking, low=0.0, high=1e3)
         _checks.number(name + "slack_weight", self.slack_weight, low=1.0, high=1e9)
         _checks.integer(name + "max_iter", self.max_iter, low=1, high=10000)
         _checks.integer(name + "max_rounds", self.max_rounds, low=1, high=100)
+        if self.budget is not None:
+            _checks.number(name + "budget", self.budget, low=0.0, low_open=True, finite=False)
         _checks.number(name + "max_gap", self.max_gap, low=0.0, high=2 * math.pi)
         _checks.number(name + "side_tolerance", self.side_tolerance, low=0.0, high=0.5 * math.pi)
         _checks.number(name + "time_constant", self.time_constant, low=0.0, high=1.0)
@@ -119,12 +182,19 @@ class MPCConfig:
     def resolve(self, robot: RobotSpec, dt: float) -> MPCConfig:
         """This config with the robot-derived defaults that do not need the plan model filled in.
 
-        (``horizon`` and ``buffer`` depend on the plan model; the filter resolves them and
-        exposes them as :attr:`~safenav.filters.mpc.MPCSafetyFilter.horizon` and ``buffer``.)
+        (``buffer`` depends on the plan model; the filter resolves it and exposes it as
+        :attr:`~safenav.filters.mpc.MPCSafetyFilter.buffer`.)
         """
+        stop_time = max(max(robot.v_max, -robot.v_min) / robot.a_max, robot.omega_max / robot.alpha_max)
+        solver = self.solver.lower()
+        casadi_solver = solver == "ipopt" or solver.startswith("sqpmethod")
         return dataclasses.replace(
             self,
+            horizon_time=self.horizon_time if self.horizon_time is not None else max(DEFAULT_HORIZON_TIME,
+                                                                                     stop_time + dt),
             margin=self.margin if self.margin is not None else default_margin(robot),
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
-            solver=self.solver.lower(),
+            solver=solver,
+            n_points=self.n_points if self.n_points is not None else CASADI_POINTS if casadi_solver else DIRECT_POINTS,
+            budget=self.budget if self.budget is not None else BUDGET_FRACTION * dt,
         )

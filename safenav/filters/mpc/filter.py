@@ -1,8 +1,10 @@
-"""Predictive (MPC) safety filter: a plan over a short horizon that is safe all the way to a stop."""
+"""Predictive (MPC) safety filter: a plan over a horizon in seconds that is safe all the way to a stop."""
 
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -11,10 +13,20 @@ from safenav import _checks
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
-from safenav.filters.mpc.config import DEFAULT_HORIZON, MPCConfig
-from safenav.filters.mpc.nlp import CasadiBackend, NLPKey
-from safenav.filters.mpc.plan import BaseModel, MPCProblem, PlanCheck, distances, row_values
+from safenav.filters.mpc.config import MPCConfig
+from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
+from safenav.filters.mpc.plan import (
+    BaseModel,
+    MPCProblem,
+    PlanCheck,
+    PlanLayout,
+    disk_centres,
+    distances,
+    row_values,
+)
+from safenav.filters.mpc.sqp import DirectSQP, PlanCost, PlanNLP, PlanSolver
 from safenav.filters.perception import Frontier, nearest_per_bin
+from safenav.filters.qp import make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -26,11 +38,11 @@ VERIFY_TOLERANCE = 1e-6
 #: (an SQP stopped at its iteration limit can miss a linear row by ~1e-7; the first command is
 #: clipped into its bounds exactly).
 BOUND_TOLERANCE = 1e-6
+#: Acceleration rows an answer meets to this [m/s, rad/s] are left as they are by the repair.
+REPAIR_TOLERANCE = 1e-9
 #: After the last swap of missed points, an answer that misses its own rows by at most this much
 #: is accepted, with its true slack reported [m]; a larger miss counts as a failed solve.
 SETTLE_TOLERANCE = 1e-3
-#: Distance of the parameter slots the reduction leaves unused from the robot [m].
-FAR_AWAY = 1e6
 
 
 class _Solved(NamedTuple):
@@ -41,64 +53,102 @@ class _Solved(NamedTuple):
     used: np.ndarray
     solve_time: float
     message: str
+    abandoned: bool = False
 
 
 class MPCSafetyFilter(SafetyFilter):
-    """Minimal change of the first command such that a plan that ends stopped stays clear of every lidar point.
+    """Minimal change of the command such that a plan that ends stopped keeps the body clear of every lidar point.
 
-    **Plan.** ``N`` commands ``u_0..u_{N-1}`` held for ``dt`` each, starting from the
-    velocity ``w_0``: the measured ``velocity``, or, when ``velocity`` is ``None``, the last
-    command this filter returned (zero after :meth:`reset`; the filter then assumes the base
-    reached it). Each command is at most ``(a_max, alpha_max) dt`` from the previous one (the
-    first from ``w_0``, or from the last command for a lagging base), respects the velocity
-    limits, and ``u_{N-1} = 0``: the plan ends stopped. The base's velocity follows the
-    commands as the model of :class:`~safenav.filters.mpc.plan.BaseModel`: within the period
-    for ``time_constant = 0`` (the base ramps from ``w_k`` to ``u_k``), or as a first-order
-    lag of that time constant, in which case the plan also keeps clear the point where the
-    base still drifts after its last command.
+    **Plan.** A horizon of ``horizon_time`` seconds: ``P = ceil(horizon_time / dt)`` commands
+    ``u_0..u_{P-1}``, one per period, starting from the velocity ``w_0``: the measured
+    ``velocity``, or, when ``velocity`` is ``None``, the last command this filter returned
+    (zero after :meth:`reset`; the filter then assumes the base reached it). Each command is at
+    most ``(a_max, alpha_max) dt`` from the previous one (the first from ``w_0``, or from the
+    last command for a lagging base), respects the velocity limits, and ``u_{P-1} = 0``: the
+    plan ends stopped. The optimiser chooses at most ``max_commands`` of them (the control
+    knots, :class:`~safenav.filters.mpc.plan.PlanLayout`); the others are interpolated
+    linearly, which keeps the full braking authority, so a short ``dt`` lengthens the plan in
+    periods but not in variables. The base's velocity follows the commands as the model of
+    :class:`~safenav.filters.mpc.plan.BaseModel`: within the period for ``time_constant = 0``
+    (the base ramps from ``w_k`` to ``u_k``), or as a first-order lag of that time constant,
+    in which case the plan also keeps clear the point where the base still drifts after its
+    last command.
 
-    **Constraints.** At every knot ``p_k`` and for every obstacle point ``o`` of the scans or
-    the memory (base frame, the world taken as static)::
+    **Body.** One disk of radius ``R`` at the base origin (``body="disk"``), or ``n_disks``
+    disks of radius ``rho`` centred at ``c_d`` along the body (``body="cover"``,
+    :meth:`~safenav.filters.body.BodyModel.cover`), whose union contains the footprint.
 
-        ||p_k - o|| >= min(r_eff + e_o, ||o||)
-        r_eff = max(sqrt((R + margin + e_arc + e_act)^2 + (L / 2)^2),  range_min + |mount|)
+    **Constraints.** At the end ``k`` of every period, for every disk ``d`` with centre
+    ``c_kd = p_k + R(yaw_k) c_d`` and every obstacle point ``o`` of the scans or the memory
+    (base frame, the world taken as static)::
 
-    with ``L = max(v_max, -v_min) dt`` the longest chord of one period, ``e_arc = (L / 2)
-    sin(omega_max dt / 2)`` the farthest a one-period arc strays from its chord, ``e_act`` the
-    farthest the true position strays from the model's within a period when the velocity
-    stays between the period's start velocity and the command (``dt^2 (a_max + L alpha_max)``
-    times ``max(beta, 1 - beta) / (1 - rho)`` of the model; 1/2 without lag), and ``e_o`` a
-    remembered point's odometry uncertainty. If both knots of a period are ``>= r_eff`` from
-    ``o``, the whole chord is ``>= sqrt(r_eff^2 - L^2/4)`` from it, so the body disk keeps
-    ``margin`` between the knots too. A point already nearer than ``r_eff`` (noise, a push)
-    may not be approached further (recovery). The planner aims for ``r_eff + buffer``
-    (default ``buffer = e_act + 2 noise_std``) so that the shifted previous plan stays
-    feasible; verification and status use ``r_eff``.
+        ||c_kd - o|| >= min(r_d + e_o, ||c_d - o||)
+        r_d = sqrt((rho_d + margin + e_arc_d + e_act_d)^2 + (L_d / 2)^2)
+
+    with ``L_d = (max(v_max, -v_min) + |c_d| omega_max) dt`` the longest path of the disk's
+    centre in one period, ``e_arc_d = (L_d / 2) sin(omega_max dt / 2)`` the farthest the
+    centre's arc in one period (a rigid motion at constant twist moves every point of the
+    body on an arc turning by ``omega dt``) strays from its chord, ``e_act_d = T^2 (a_max +
+    (v_max T + |c_d|) alpha_max)`` times ``max(beta, 1 - beta) / (1 - rho)`` of the model (1/2
+    without lag) the farthest the true centre strays from the model's while a command is held
+    for ``T`` (``dt``, or the call period of a late call) when the velocity stays between the
+    start velocity and the command (a speed error and a heading error, the latter acting on
+    the distance travelled and on the disk's offset), and ``e_o`` a remembered point's
+    odometry uncertainty. If both ends of a period
+    are ``>= r_d`` from ``o``, the whole chord is ``>= sqrt(r_d^2 - L_d^2 / 4)`` from it, so
+    the disk keeps ``margin`` between the knots too, and with it the footprint the disks
+    cover. The disk nearest the lidar also keeps ``r_d >= range_min + |mount - c_d|``, so the
+    lidar can always measure a point the plan keeps out. A point already nearer than ``r_d``
+    (noise, a push) may not be approached further (recovery). The planner aims beyond ``r_d``
+    by the buffer (default ``e_act + 2 noise_std``) plus the growth of the point's
+    uncertainty at the next carry by measured velocity (``T^2 (a_max + ||o|| alpha_max) / 2``),
+    so that the shifted previous plan stays feasible. The actuator part and that growth are
+    kept; the rest (the range noise) a plan may use at a cost (``buffer_cost``: all of it costs
+    as much as braking the first command from full speed to a stop), to pass a door just
+    wider than the body (:attr:`MPCProblem.floor`); never ``r_d``, which verification and the
+    status use.
 
     **Unknown region and memory.** As the CBF filter (:mod:`safenav.filters.perception`):
     outline samples facing a gap or a side no lidar sees forbid translating towards them over
     the whole horizon; points that leave every field of view are remembered while within
     reach and not contradicted, carried by odometry.
 
-    **Cost.** ``w_v (v_0 - v_nom)^2 + w_omega (omega_0 - omega_nom)^2`` plus
-    ``regularisation`` times the same weights on the later commands, plus a slack ``s`` that
-    relaxes every clearance row, with a heavy linear and quadratic cost.
+    **Cost: the nominal's intent along the plan.** The nominal clipped to the velocity limits
+    is held along the plan: ``sum_k c_k [w_v (v_k - v_nom)^2 + w_omega (omega_k -
+    omega_nom)^2]`` with ``c_0 = 1`` and ``c_k = tracking / (P - 1)``, plus the buffer and the
+    slack costs (:mod:`safenav.filters.mpc.sqp`). A plan that brakes in front of an obstacle
+    pays for every later period it is slower than the nominal; one that steers round it pays
+    only the (cheaper, ``STEERING_PREFERENCE``) turn: the filter steers where it can.
 
     **Minimal intervention (fast path).** The candidate "``u_nom`` clipped to the reachable
     box, then brake at the acceleration limits to a stop" is checked against every bound and
     every point in reach; when it passes, its first command is returned (``u_nom`` itself,
     bit for bit, when ``u_nom`` is reachable) and nothing is solved.
 
-    **Solve.** Otherwise the NLP (built once; ``K`` point slots as parameters) is solved by
-    casadi's ``sqpmethod``, warm-started from the previous plan shifted by one step. **Every
-    answer is checked numerically** against every bound, every acceleration row and *every*
-    point in reach; points the plan violates are swapped into the slots and the NLP is solved
-    again (up to ``max_rounds`` solves).
+    **Solve.** Otherwise the NLP is solved by sequential quadratic programming
+    (:class:`~safenav.filters.mpc.sqp.DirectSQP`): casadi gives the model and its exact
+    derivatives (one Function per shape, built once), each step's QP goes to DAQP directly
+    through the same back-end interface as the CBF's (:mod:`safenav.filters.qp`), warm-started
+    from the previous plan (shifted by one period, its final braking left aligned with the
+    end of the horizon) and from the previous QP's active set. ``solver="sqpmethod"`` solves the
+    same NLP with casadi's ``sqpmethod`` instead (the reference, three to ten times slower).
+    **Every answer is checked numerically** against every bound, every acceleration row and
+    *every* point in reach at every period's end; points the plan violates are swapped into the
+    ``K`` slots and the NLP is solved again (up to ``max_rounds`` solves). An answer that needs
+    slack gives way to the previous plan shifted by one period when that plan, checked the
+    same way, needs none.
+
+    **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
+    of ``dt``), counted from the start of the optimisation and checked before every QP of
+    the SQP: when it runs out the solve is abandoned (the next call starts afresh, on time)
+    and the filter follows the next command of its last verified plan, which ends stopped
+    (status ``FALLBACK``, reason ``deadline``); without one it brakes at the acceleration
+    limits. The overrun is at most one QP of the SQP.
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
-    acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the block's
-    length) and reports ``LATE``.
+    acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the
+    block's length ``T = m dt``) and reports ``LATE``.
 
     **Guarantee.** If the world is static, every obstacle wider than the beam gap at 1 m is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF
@@ -107,26 +157,30 @@ class MPCSafetyFilter(SafetyFilter):
     velocity and the command with the model's end-of-period velocity (any base that reaches
     each command within the period for ``time_constant = 0``; a first-order lag of at most
     ``time_constant`` otherwise), then, with status ``OK``, ``LATE`` or ``RECOVERING``,
-    throughout the executed period the body disk keeps ``margin`` from every point seen or
-    remembered at least ``r_eff`` away, and the plan it follows can be continued to a stop
-    without coming nearer. Returned commands always respect the velocity and acceleration
-    limits. **Recursive feasibility:** if the base moves exactly as modelled and no point is
-    nearer than ``r_eff + buffer``, the previous plan shifted by one step satisfies every
-    constraint of the next problem. The filter checks the base against its model at every
-    call with ``velocity`` and warns (:attr:`FilterResult.warnings`) when the base lags more
-    than the model allows.
+    throughout the executed period every body disk, hence the footprint they cover, keeps
+    ``margin`` from every point seen or remembered at least ``r_d`` away, and the plan it
+    follows can be continued to a stop without coming nearer. Returned commands always respect
+    the velocity and acceleration limits. **Recursive feasibility:** if the base moves
+    exactly as modelled and no point is nearer than the planned radius, the previous plan
+    shifted by one period passes every check of the next problem, and the filter takes it
+    when its optimiser's answer needs slack (with move blocking the shifted plan need not be
+    one the optimiser can represent).
+    The filter checks the base against its model at every call with ``velocity`` and warns
+    (:attr:`FilterResult.warnings`) when the base lags more than the model allows.
 
     **When it cannot hold.** No plan without slack: the plan violates the rows as little as
     possible (status ``SLACK``). No plan that keeps the hard bounds (a base too fast to stop
     within the horizon, or moving towards space that has just become unknown): it brakes at
-    its limits (status ``BRAKING``). Solver failure, or an answer that fails verification:
-    the filter executes the next command of the last verified plan, which ends stopped
-    (status ``FALLBACK``); without one it brakes at the acceleration limits.
+    its limits (status ``BRAKING``). Solver failure, an answer that fails verification, or the
+    deadline: the filter executes the next command of the last verified plan, which ends
+    stopped (status ``FALLBACK``); without one it brakes at the acceleration limits.
 
     Args:
         robot: the robot to protect.
         dt: control period [s].
-        config: settings; keyword arguments override its fields (e.g. ``horizon=30``).
+        config: settings; keyword arguments override its fields (e.g. ``horizon_time=1.5``).
+        clock: the clock the compute budget is measured with [s] (default ``time.perf_counter``;
+            tests inject a simulated one).
 
     Raises:
         InvalidConfig: a setting is out of range, or ``omega_max dt > 2`` (too coarse a period).
@@ -135,7 +189,8 @@ class MPCSafetyFilter(SafetyFilter):
 
     name = "mpc"
 
-    def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: MPCConfig | None = None, **overrides: Any):
+    def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: MPCConfig | None = None,
+                 clock: Callable[[], float] | None = None, **overrides: Any):
         base_config = MPCConfig(**{**(config.__dict__ if config else {}), **overrides})
         dt = _checks.duration("dt", dt, high=1.0)
         self.config = cfg = base_config.resolve(robot, dt)
@@ -143,58 +198,109 @@ class MPCSafetyFilter(SafetyFilter):
             raise InvalidConfig(f"omega_max * dt = {robot.omega_max * dt:.3g} rad per period is too coarse for the "
                                 f"MPC filter's arc model; expected <= 2 (a shorter dt)")
         self.margin = float(cfg.margin)
-        super().__init__(robot, dt, body=BodyModel.disk(robot), scan_timeout=cfg.scan_timeout,
+        body = BodyModel.cover(robot, cfg.n_disks) if cfg.body == "cover" else BodyModel.disk(robot)
+        super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
                          deadlock_time=cfg.deadlock_time)
         dt = self.dt
-        lidar = robot.lidar
+        self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
+        self.budget = float(cfg.budget)
         self.model = BaseModel(dt, cfg.time_constant)
         self._step = np.array([robot.a_max, robot.alpha_max]) * dt
         self.speed = max(robot.v_max, -robot.v_min)
-        stop_steps = math.ceil(max(self.speed / self._step[0], robot.omega_max / self._step[1]) - 1e-9)
-        self.horizon = cfg.horizon if cfg.horizon is not None else max(DEFAULT_HORIZON, stop_steps + 1)
-        chord = self.speed * dt
-        self.arc_error = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
-        self._spread = max(self.model.beta, 1.0 - self.model.beta) * self.model.tracking
-        self.actuator_error = self._actuator_error(1)
-        self._blind = lidar.range_min + math.hypot(lidar.mount.x, lidar.mount.y)
-        self.inflated_radius = self._inflated_radius(1)
-        self._buffer_setting = cfg.buffer
-        self.buffer = cfg.buffer if cfg.buffer is not None else self.actuator_error + 2.0 * lidar.noise_std
+        periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))
+        self.layout = PlanLayout.of(periods, cfg.max_commands)
+        self._layouts: dict[int, PlanLayout] = {1: self.layout}
+        self.offsets = np.array(self.body.centres, dtype=float)
+        self._inflations: dict[int, tuple[np.ndarray, np.ndarray, float, float]] = {}
+        self.inflated_radii, self.actuator_errors, self.buffer, self.soft_buffer = self._inflation(1)
         self.weights = (float(cfg.weights[0]), float(cfg.weights[1]))
+        # Using the whole soft buffer costs buffer_cost times the first command braking from full speed to a stop.
+        buffer_weight = float(cfg.buffer_cost) * self.weights[0] * self.speed**2 / max(self.soft_buffer, 0.01) ** 2
+        self.cost = PlanCost(self.weights, float(cfg.tracking), buffer_weight, float(cfg.slack_weight))
         self.n_points = cfg.n_points
-        self.backend = CasadiBackend(NLPKey(self.horizon, self.n_points, dt, cfg.time_constant, self.weights,
-                                            cfg.regularisation, cfg.slack_weight, cfg.solver, cfg.hessian,
-                                            cfg.max_iter))
-        knots = self.horizon + (1 if cfg.time_constant > 0.0 else 0)
-        self._lbg = np.concatenate((-np.tile(self._step, self.horizon - 1), np.zeros(self.n_points * knots)))
-        self._ubg = np.concatenate((np.tile(self._step, self.horizon - 1), np.full(self.n_points * knots, np.inf)))
+        self.backend: PlanSolver = self._make_solver()
         self._commands: np.ndarray | None = None
 
-    def _actuator_error(self, hold: int) -> float:
-        """Farthest the true position strays from the model's over a block of ``hold`` periods in which one
-        command is held (the velocity between the block's start velocity and the command) [m]."""
-        robot, held = self.robot, hold * self.dt
-        return self._spread * held * held * (robot.a_max + self.speed * self.dt * robot.alpha_max)
+    def _inflation(self, hold: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Each disk's guaranteed radius ``r_d``, actuator error ``e_act_d``, the buffer and the part of
+        it the plan may use, when every command is held ``hold`` periods (see the class docstring) [m].
 
-    def _inflated_radius(self, hold: int) -> float:
-        """``r_eff`` when commands are held ``hold`` periods (see the class docstring) [m]."""
-        chord = self.speed * self.dt
-        radius = self.robot.radius + self.margin + self.arc_error + self._actuator_error(hold)
-        return max(math.hypot(radius, 0.5 * chord), self._blind)
+        The buffer's actuator part keeps the shifted plan feasible when the base strays from the
+        model as far as A4 allows: it is kept. The rest (twice the range noise by default) is
+        for noise between scans: a plan may use it, at a cost, where it cannot move otherwise.
+        """
+        cached = self._inflations.get(hold)
+        if cached is not None:
+            return cached
+        robot, dt = self.robot, self.dt
+        lever = np.hypot(self.offsets[:, 0], self.offsets[:, 1])
+        chord = (self.speed + lever * robot.omega_max) * dt
+        spread = max(self.model.beta, 1.0 - self.model.beta) * self.model.tracking
+        held = hold * dt
+        arc = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
+        actuator = spread * held * held * (robot.a_max + (self.speed * held + lever) * robot.alpha_max)
+        radii = np.hypot(self.body.radii + self.margin + arc + actuator, 0.5 * chord)
+        lidar = robot.lidar
+        to_lidar = np.hypot(lidar.mount.x - self.offsets[:, 0], lidar.mount.y - self.offsets[:, 1])
+        nearest = int(np.argmin(to_lidar))
+        radii[nearest] = max(radii[nearest], lidar.range_min + to_lidar[nearest])
+        setting = self.config.buffer
+        kept = float(np.max(actuator))
+        buffer = float(setting) if setting is not None else kept + 2.0 * lidar.noise_std
+        soft = max(0.0, buffer - kept)
+        for array in (radii, actuator):
+            array.flags.writeable = False
+        if hold == 1:
+            arc.flags.writeable = False
+            self.arc_errors = arc
+        self._inflations[hold] = (radii, actuator, buffer, soft)
+        return radii, actuator, buffer, soft
 
-    def _step_bounds(self, hold: int) -> np.ndarray:
-        """``(N - 1, 2)`` largest change between consecutive commands: within a block of ``hold`` equal
-        commands none, between blocks what the acceleration limits allow in ``hold`` periods."""
-        k = np.arange(1, self.horizon)
-        return np.where((k % hold == 0)[:, None], hold * self._step, 0.0)
+    def _layout_for(self, hold: int) -> PlanLayout:
+        """The layout of a plan whose commands are held ``hold`` periods (cached per filter)."""
+        layout = self._layouts.get(hold)
+        if layout is None:
+            layout = self._layouts[hold] = PlanLayout.of(self.horizon, self.layout.max_commands, hold)
+        return layout
+
+    def _make_solver(self) -> PlanSolver:
+        cfg = self.config
+        if cfg.solver == "ipopt" or cfg.solver.startswith("sqpmethod"):
+            offsets = tuple((float(x), float(y)) for x, y in self.offsets)
+            return CasadiNLP(NLPKey(self.layout.periods, self.layout.max_commands, 1, self.n_points, offsets,
+                                    self.dt, cfg.time_constant, self.cost, cfg.solver, cfg.hessian, cfg.max_iter))
+        return DirectSQP(PlanModel(self.layout.periods, self.model), self.offsets, self.cost,
+                         make_backend(cfg.solver), cfg.max_iter)
+
+    @property
+    def horizon(self) -> int:
+        """Commands of a plan (one per period)."""
+        return self.layout.periods
+
+    @property
+    def inflated_radius(self) -> float:
+        """The largest of :attr:`inflated_radii` [m] (the only one for the disk model)."""
+        return float(np.max(self.inflated_radii))
+
+    @property
+    def arc_error(self) -> float:
+        """The largest of :attr:`arc_errors` [m]."""
+        return float(np.max(self.arc_errors))
+
+    @property
+    def actuator_error(self) -> float:
+        """The largest of :attr:`actuator_errors` [m]."""
+        return float(np.max(self.actuator_errors))
 
     def __repr__(self) -> str:
         return (f"MPCSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, horizon={self.horizon}, "
-                f"n_points={self.n_points}, margin={self.margin:.4f}, inflated_radius={self.inflated_radius:.4f}, "
-                f"buffer={self.buffer:.4f}, time_constant={self.model.time_constant}, solver={self.backend.name!r})")
+                f"knots={self.layout.n_knots}, body={self.body.name!r}, n_points={self.n_points}, "
+                f"margin={self.margin:.4f}, inflated_radius={self.inflated_radius:.4f}, buffer={self.buffer:.4f}, "
+                f"time_constant={self.model.time_constant}, budget={self.budget:.4g}, "
+                f"solver={self.backend.name!r})")
 
     # ------------------------------------------------------------------ hooks
 
@@ -222,10 +328,10 @@ class MPCSafetyFilter(SafetyFilter):
             self.model.time_constant * max(start, self.speed)
 
     def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """Per-step command bounds ``(N, 2)``: limits, reachability, unknown space, stopped at the end.
+        """Per-period command bounds ``(P, 2)``: limits, reachability, unknown space, stopped at the end.
 
-        Commands come in blocks of ``hold`` equal ones (one call period); each block may differ from the
-        previous one by what the acceleration limits allow in ``hold`` periods.
+        With late calls commands come in blocks of ``hold`` equal ones (one call period); each block
+        may differ from the previous one by what the acceleration limits allow in ``hold`` periods.
         """
         robot = self.robot
         # A lagging base is commanded a sequence that slews at the acceleration limits; its velocity follows.
@@ -259,54 +365,80 @@ class MPCSafetyFilter(SafetyFilter):
         return self._problem(nominal, self._observe(self._match(as_scans(scan))), start, 1)
 
     def _problem(self, u_nom: np.ndarray, view: View, velocity: np.ndarray, hold: int) -> MPCProblem:
-        robot = self.robot
+        body = self.body
         points, uncertainty = view.points, view.uncertainty
-        distance = np.hypot(points[:, 0], points[:, 1])
-        if distance.size:
-            nearest = float(np.min(distance - uncertainty))
-            min_barrier = nearest - (robot.radius + self.margin)
+        offsets = self.offsets
+        inflated, _, buffer, soft = self._inflation(hold)
+        if points.shape[0]:
+            now = np.hypot(points[:, None, 0] - offsets[None, :, 0], points[:, None, 1] - offsets[None, :, 1])
+            min_barrier = float(np.min(now - uncertainty[:, None] - (body.radii + self.margin)[None, :]))
+            reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
+            keep = np.hypot(points[:, 0], points[:, 1]) <= reach + buffer + uncertainty
+            points, uncertainty, now = points[keep], uncertainty[keep], now[keep]
         else:
+            now = np.empty((0, offsets.shape[0]))
             min_barrier = math.inf
-        clearance = self.body.clearance(points)
-        inflated = self._inflated_radius(hold)
-        buffer = self.buffer if self._buffer_setting is not None or hold == 1 else \
-            self._actuator_error(hold) + 2.0 * robot.lidar.noise_std
-        planned = inflated + buffer + uncertainty
-        keep = distance <= self._reach(velocity) + planned
-        points, distance, uncertainty, planned = points[keep], distance[keep], uncertainty[keep], planned[keep]
+        guaranteed = inflated[None, :] + uncertainty[:, None]
+        # The planner also keeps the growth of a point's uncertainty at the next carry by the measured
+        # velocity (A5's trapezoid: half the period times the velocity change, at most the acceleration
+        # limits), so that the shifted plan stays feasible once a point has left the field of view.
+        held = hold * self.dt
+        drift = 0.5 * held * held * (self.robot.a_max + np.hypot(points[:, 0], points[:, 1]) * self.robot.alpha_max)
+        floor = guaranteed + (buffer - soft) + drift[:, None]
         lower, upper = self._bounds(velocity, view.frontier, hold)
-        return MPCProblem(u_nom, velocity.copy(), points, np.minimum(planned, distance),
-                          np.minimum(inflated + uncertainty, distance), lower, upper, hold,
-                          view.frontier, min_barrier, clearance)
+        return MPCProblem(u_nom, velocity.copy(), points, uncertainty, np.minimum(floor + soft, now),
+                          np.minimum(guaranteed, now),
+                          np.minimum(floor, now), lower, upper, self._layout_for(hold), view.frontier, min_barrier,
+                          body.clearance(view.points))
 
     # ------------------------------------------------------------------ plans
 
     def predict(self, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Poses ``(N + 1, 3)`` the model predicts for ``commands`` ``(N, 2)`` from ``velocity``, in the base frame."""
+        """Poses ``(P + 1, 3)`` the model predicts for ``commands`` ``(P, 2)`` from ``velocity``, in the base frame."""
         return self.model.rollout(commands, velocity)[0]
 
-    def _knots(self, poses: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-        """The points a plan's clearance is checked at: knots ``1..N`` and, for a lag, where it drifts to."""
-        knots = poses[1:, :2]
-        if self.model.time_constant > 0.0:
-            knots = np.vstack((knots, self.model.coast(poses[-1], velocities[-1])))
-        return knots
+    def knot_centres(self, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Where each body disk's centre is at every clearance knot of a plan: ``(K, D, 2)`` [m]."""
+        return disk_centres(self.model.knot_poses(commands, velocity)[0], self.offsets)
 
     def check_plan(self, problem: MPCProblem, commands: np.ndarray) -> PlanCheck:
-        """How far ``commands`` ``(N, 2)`` are from satisfying every constraint of ``problem``."""
+        """How far ``commands`` ``(P, 2)`` are from satisfying every constraint of ``problem``."""
         commands = np.asarray(commands, dtype=float).reshape(self.horizon, 2)
         limits = max(float(np.max(problem.lower - commands)), float(np.max(commands - problem.upper)))
-        if self.horizon > 1:
-            limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - self._step_bounds(problem.hold))))
-        poses, velocities = self.model.rollout(commands, problem.velocity)
-        gaps = distances(self._knots(poses, velocities), problem.points)
+        steps = problem.layout.period_changes[:, None] * self._step
+        limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - steps)))
+        knots, poses, velocities = self.model.knot_poses(commands, problem.velocity)
+        gaps = distances(disk_centres(knots, self.offsets), problem.points)
         if gaps.size == 0:
             return PlanCheck(limits, math.inf, math.inf, gaps, poses, velocities)
         return PlanCheck(limits, float(np.min(gaps - problem.guaranteed)), float(np.min(gaps - problem.radii)),
                          gaps, poses, velocities)
 
+    def plan_cost(self, problem: MPCProblem, commands: np.ndarray) -> float:
+        """The cost of ``commands`` ``(P, 2)`` without the slacks (what the optimiser trades off)."""
+        target = np.clip(problem.u_nom, self.robot.lower, self.robot.upper)
+        deviation = (np.asarray(commands, dtype=float).reshape(self.horizon, 2) - target) ** 2 @ np.array(self.weights)
+        return float(self.cost.period_weights(self.horizon) @ deviation)
+
+    def _realigned(self, shifted: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        """A warm start from the last plan: shifted in time, except its final braking, which stays put.
+
+        The optimum tracks the nominal as long as it can still stop by the end of the horizon,
+        so from one call to the next its final braking (where each command is as far from zero
+        as stopping at the end allows) stays aligned with the end of the horizon, not with time;
+        the plain shifted plan would stop one period early (one more SQP iteration).
+        """
+        warm = shifted.copy()
+        stopping = (self.horizon - 1 - np.arange(self.horizon))[:, None] * self._step
+        on_profile = np.abs(previous) >= stopping - 1e-9
+        for axis in range(2):
+            outside = np.flatnonzero(~on_profile[:, axis])
+            tail = outside[-1] + 1 if outside.size else 0
+            warm[tail:, axis] = previous[tail:, axis]
+        return warm
+
     def _braking(self, first: np.ndarray, hold: int = 1) -> np.ndarray:
-        """``first``, then every block of ``hold`` commands nearer zero by the acceleration limit: ``(N, 2)``."""
+        """``first``, then every block of ``hold`` commands nearer zero by the acceleration limit: ``(P, 2)``."""
         steps = (np.arange(self.horizon) // hold)[:, None] * hold * self._step
         return np.sign(first) * np.maximum(np.abs(first) - steps, 0.0)
 
@@ -317,6 +449,7 @@ class MPCSafetyFilter(SafetyFilter):
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        deadline = self.clock() + self.budget
         start = self._last_command if velocity is None else velocity
         hold = min(self.horizon - 1, max(1, math.ceil(period / self.dt - 1e-6)))
         problem = self._problem(u_nom, view, start, hold)
@@ -325,6 +458,7 @@ class MPCSafetyFilter(SafetyFilter):
         if self._commands is not None:
             shift = min(hold, self.horizon)
             shifted = np.vstack((self._commands[shift:], np.zeros((shift, 2))))
+            previous = self._commands
         self._commands = None
         frontier = view.frontier
         if (frontier.blocks_forward and problem.lower[0, 0] > 0.0) or (
@@ -341,20 +475,42 @@ class MPCSafetyFilter(SafetyFilter):
             self._commands = candidate
             return self._result(problem, candidate, check, details, used=np.empty(0, dtype=np.intp),
                                 solve_time=0.0, solver="")
-        warm = np.clip(shifted if shifted is not None else candidate, problem.lower, problem.upper)
-        outcome = self._solve(problem, warm, candidate)
+        warm = np.clip(candidate if shifted is None else self._realigned(shifted, previous), problem.lower,
+                       problem.upper)
+        outcome = self._solve(problem, warm, candidate, deadline)
+        if outcome.abandoned:
+            spent = self.clock() - (deadline - self.budget)
+            return self._fallback(problem, shifted, "deadline",
+                                  f"no verified plan within the compute budget of {1e3 * self.budget:.3g} ms "
+                                  f"({1e3 * spent:.3g} ms spent; the solve was abandoned)", outcome.solve_time,
+                                  details)
         if outcome.commands is None or outcome.check is None:
-            return self._fallback(problem, shifted, outcome.message, outcome.solve_time, details)
+            return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
+        if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
+            outcome = self._keep_shifted(problem, shifted, outcome)
         self._commands = outcome.commands
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
                             solve_time=outcome.solve_time, solver=self.backend.name)
+
+    def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
+        """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
+
+        With move blocking the shifted plan need not be one the optimiser can represent, so an
+        answer with slack does not prove that no plan without slack exists: the shifted plan is
+        checked like any answer (its first command moved into what the base can reach now).
+        """
+        commands = self._repair(shifted, problem)
+        check = self.check_plan(problem, commands)
+        if check.limits <= BOUND_TOLERANCE and check.clearance >= -VERIFY_TOLERANCE:
+            return solved._replace(commands=commands, check=check)
+        return solved
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
                 used: np.ndarray, solve_time: float, solver: str) -> FilterResult:
         """The result for a verified plan: status from its slack and the margin, and why it differs from u_nom."""
         status, reason = FilterStatus.OK, None
         slack = max(0.0, -check.clearance)
-        margins = check.distances - problem.radii
+        margins = (check.distances - problem.radii).min(axis=1) if check.distances.size else np.empty(0)
         nearest = int(np.argmin(margins)) if margins.size else -1
         point = None if nearest < 0 else (float(problem.points[nearest, 0]), float(problem.points[nearest, 1]))
         if slack > VERIFY_TOLERANCE:
@@ -372,10 +528,11 @@ class MPCSafetyFilter(SafetyFilter):
         elif not np.array_equal(commands[0], problem.u_nom):
             reason = self._why(problem, commands, check, point)
         active = np.flatnonzero(margins[used] <= VERIFY_TOLERANCE + max(0.0, -check.planned))
+        n_knots = check.poses.shape[0] - 1 + (1 if self.model.time_constant > 0.0 else 0)
         return FilterResult(
             u=commands[0], u_nom=problem.u_nom, status=status, reason=reason,
-            n_constraints=int(used.size) * self.horizon, constraint_points=problem.points[used], active=active,
-            slack=slack if status is FilterStatus.SLACK else 0.0, solver=solver, solve_time=solve_time,
+            n_constraints=int(used.size) * n_knots * self.offsets.shape[0], constraint_points=problem.points[used],
+            active=active, slack=slack if status is FilterStatus.SLACK else 0.0, solver=solver, solve_time=solve_time,
             plan=self._plan_array(check.poses, commands, problem.velocity), **details,
         )
 
@@ -397,66 +554,69 @@ class MPCSafetyFilter(SafetyFilter):
         return Reason("plan", "a plan that ends stopped keeps the clearance only with this first command", point)
 
     def _select(self, problem: MPCProblem, references: list[np.ndarray]) -> np.ndarray:
-        """Indices of at most ``K`` points: nearest per angular bin by clearance to the reference knots."""
+        """Indices of at most ``K`` points: nearest per angular bin by clearance to the reference plans.
+
+        The bins halve until the slots are full, so the slots spread over every direction
+        (a wall's points one slot every few degrees, not its nearest stretch twice over).
+        """
         count = problem.points.shape[0]
         if count <= self.n_points:
             return np.arange(count)
-        knots = np.vstack([poses[1:, :2] for poses in references])
-        keys = distances(knots, problem.points) - problem.radii
+        centres = np.concatenate([self.knot_centres(commands, problem.velocity) for commands in references])
+        keys = np.min(distances(centres, problem.points) - problem.radii, axis=1)
         chosen = nearest_per_bin(problem.points, keys, (0.0, 0.0), self.n_points)
-        if chosen.size < self.n_points:
+        bins = self.n_points
+        while chosen.size < self.n_points and bins < 64 * self.n_points:
+            bins *= 2
             rest = np.setdiff1d(np.arange(count), chosen, assume_unique=True)
-            order = np.argsort(keys[rest], kind="stable")[: self.n_points - chosen.size]
-            chosen = np.concatenate((chosen, rest[order]))
+            more = rest[nearest_per_bin(problem.points[rest], keys[rest], (0.0, 0.0), bins)]
+            chosen = np.concatenate((chosen, more[: self.n_points - chosen.size]))
         return chosen
 
-    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray) -> _Solved:
+    def _nlp(self, problem: MPCProblem, used: np.ndarray, start: np.ndarray) -> PlanNLP:
+        """The NLP of ``problem`` with the points ``used`` in the slots, starting from the plan ``start``."""
+        soft = self._inflation(problem.hold)[3]
+        return PlanNLP(problem.velocity, np.clip(problem.u_nom, self.robot.lower, self.robot.upper),
+                       problem.points[used], problem.radii[used], self._relief(problem)[used], problem.lower,
+                       problem.upper, problem.layout, self._step, soft, problem.layout.sample(start))
+
+    def _relief(self, problem: MPCProblem) -> np.ndarray:
+        """``(M, D)`` the share of the soft buffer each row may use: down to :attr:`MPCProblem.floor`."""
+        soft = self._inflation(problem.hold)[3]
+        if soft <= 0.0:
+            return np.zeros_like(problem.radii)
+        return np.clip((problem.radii - problem.floor) / soft, 0.0, 1.0)
+
+    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float) -> _Solved:
         """Solve the NLP; swap points the answer violates into the slots and solve again.
 
         An answer is accepted when, for every point in reach, each knot keeps either the
-        guaranteed radius or the distance the solver's own slack allows in its row.
+        guaranteed radius or the distance the solver's own slacks allow in its row.
         """
-        horizon, n_points = self.horizon, self.n_points
-        used = self._select(problem, [self.predict(warm, problem.velocity),
-                                      self.predict(candidate, problem.velocity)])
-        lbx = np.append(problem.lower.ravel(), 0.0)
-        ubx = np.append(problem.upper.ravel(), np.inf)
-        lbg, ubg = self._lbg, self._ubg
-        if problem.hold > 1:   # blocks of `hold` equal commands, one per call period
-            steps = self._step_bounds(problem.hold).ravel()
-            lbg, ubg = lbg.copy(), ubg.copy()
-            lbg[: steps.size], ubg[: steps.size] = -steps, steps
-        head = np.concatenate((problem.velocity, problem.u_nom))
+        n_points = self.n_points
+        used = self._select(problem, [warm, candidate])
         commands = warm
         solve_time = 0.0
+        relief = self._relief(problem)
         # Smallest row value each point has had in any answer so far: a point that was ever near a
         # violation keeps its slot, so the working set grows monotonically until the slots run out.
         priority = np.full(problem.points.shape[0], np.inf)
         for round_index in range(self.config.max_rounds):
-            slots = np.full((n_points, 2), FAR_AWAY)
-            radii = np.full(n_points, self.inflated_radius)
-            slots[: used.size] = problem.points[used]
-            radii[: used.size] = problem.radii[used]
-            start_slack = 0.0
-            if used.size:
-                poses, velocities = self.model.rollout(commands, problem.velocity)
-                rows = row_values(distances(self._knots(poses, velocities), problem.points[used]),
-                                  problem.radii[used])
-                start_slack = max(0.0, -float(rows.min()))
-            outcome = self.backend.solve(np.append(commands.ravel(), start_slack),
-                                         np.concatenate((head, slots.ravel(), radii)), lbx, ubx, lbg, ubg)
+            outcome = self.backend.solve(self._nlp(problem, used, commands), deadline, self.clock)
             solve_time += outcome.solve_time
-            x = outcome.x
-            if x is None or x.shape != (2 * horizon + 1,) or not np.all(np.isfinite(x)):
+            if outcome.abandoned:
+                return _Solved(None, None, used, solve_time, "deadline", abandoned=True)
+            if outcome.knots is None or not np.all(np.isfinite(outcome.knots)):
                 return _Solved(None, None, used, solve_time, f"solver {self.backend.name} failed ({outcome.status})")
-            commands = self._repair(x[:-1].reshape(horizon, 2), problem)
+            commands = self._repair(problem.layout.expand(outcome.knots), problem)
             check = self.check_plan(problem, commands)
             if check.limits > BOUND_TOLERANCE:
                 return _Solved(None, None, used, solve_time,
                                f"answer of {self.backend.name} ({outcome.status}) violates the velocity or "
                                f"acceleration bounds by {check.limits:.3g}")
             rows = row_values(check.distances, problem.radii)
-            shortfall = np.maximum(rows + max(0.0, float(x[-1])), check.distances - problem.guaranteed)
+            relaxed = rows + relief * max(0.0, outcome.buffer_slack) + max(0.0, outcome.slack)
+            shortfall = np.min(np.maximum(relaxed, check.distances - problem.guaranteed), axis=1)
             violated = np.flatnonzero(shortfall < -VERIFY_TOLERANCE)
             if violated.size == 0:
                 return _Solved(commands, check, used, solve_time, "")
@@ -471,7 +631,7 @@ class MPCSafetyFilter(SafetyFilter):
                     return _Solved(commands, check, used, solve_time, "")
                 break
             # Swap the missed points in, in place of the points that have stayed farthest from violation.
-            priority = np.minimum(priority, rows)
+            priority = np.minimum(priority, np.min(rows, axis=1))
             pool = np.union1d(used, missed)
             order = np.argsort(priority[pool], kind="stable")
             used = pool[order[:n_points]]
@@ -482,14 +642,16 @@ class MPCSafetyFilter(SafetyFilter):
         """``commands`` moved into their bounds, acceleration rows and hold (an SQP stopped at its
         iteration limit can miss a linear row by ~1e-6); the result is verified like any answer."""
         repaired = np.clip(commands, problem.lower, problem.upper)
-        steps = self._step_bounds(problem.hold)
+        steps = problem.layout.period_changes[:, None] * self._step
+        if np.all(np.abs(np.diff(repaired, axis=0)) <= steps + REPAIR_TOLERANCE):
+            return repaired     # within the QP solver's accuracy: the check's tolerance is far larger
         for k in range(1, self.horizon):
             repaired[k] = np.clip(np.clip(repaired[k], repaired[k - 1] - steps[k - 1], repaired[k - 1] + steps[k - 1]),
                                   problem.lower[k], problem.upper[k])
         return repaired
 
-    def _fallback(self, problem: MPCProblem, shifted: np.ndarray | None, detail: str, solve_time: float,
-                  details: dict[str, Any]) -> FilterResult:
+    def _fallback(self, problem: MPCProblem, shifted: np.ndarray | None, family: str, detail: str,
+                  solve_time: float, details: dict[str, Any]) -> FilterResult:
         """Next command of the last verified plan (which ends stopped), or braking at the limits without one."""
         if shifted is not None:
             commands = shifted.copy()
@@ -501,5 +663,5 @@ class MPCSafetyFilter(SafetyFilter):
             detail = f"{detail}; no verified plan, braking at the acceleration limits"
         poses = self.predict(commands, problem.velocity)
         return FilterResult(u=commands[0], u_nom=problem.u_nom, status=FilterStatus.FALLBACK,
-                            reason=Reason("solver", detail), solver=self.backend.name, solve_time=solve_time,
+                            reason=Reason(family, detail), solver=self.backend.name, solve_time=solve_time,
                             plan=self._plan_array(poses, commands, problem.velocity), **details)

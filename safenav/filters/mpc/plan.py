@@ -1,17 +1,32 @@
-"""The MPC's model of the base and of a plan: prediction, checks, braking plans.
+"""The MPC's model of the base and of a plan: layout, prediction, checks, braking plans.
 
-A plan is ``N`` commands ``u_0..u_{N-1}``, each held for one period ``dt``. The base's
-velocity ``w`` follows the commands as a first-order lag of time constant ``tau``
-(:class:`BaseModel`); ``tau = 0`` is a base that reaches each command within the period
-(the velocity then ramps from ``w_k`` to ``u_k``). Over period ``k`` the base moves along
-the exact arc of the mean velocity ``u_k + beta (w_k - u_k)`` and ends the period at
+A plan is ``P`` commands ``u_0..u_{P-1}``, one per control period ``dt``, covering the
+horizon (given in seconds). The optimiser does not choose every command: it chooses the
+commands ``U_j`` of ``n <= P`` *knots* (:class:`PlanLayout`): with a short ``dt`` the
+commands between knots are linearly interpolated (move blocking, which keeps the full
+braking authority: a change of at most ``a_max dt`` per period between knots ``k`` periods
+apart is ``|U_{j+1} - U_j| <= k a_max dt``); when calls come late, every command is held
+for the call period (blocks of equal commands). Clearance is still required at the end of
+*every* period, so the argument that covers the motion between two clearance knots
+(:class:`~safenav.filters.mpc.MPCSafetyFilter`) is the one-period argument whatever the
+number of knots.
+
+The base's velocity ``w`` follows the commands as a first-order lag of time constant
+``tau`` (:class:`BaseModel`); ``tau = 0`` is a base that reaches each command within the
+period (the velocity then ramps from ``w_k`` to ``u_k``). Over period ``k`` the base moves
+along the exact arc of the mean velocity ``u_k + beta (w_k - u_k)`` and ends the period at
 ``w_{k+1} = u_k + rho (w_k - u_k)``, with ``rho = exp(-dt / tau)`` and
 ``beta = (tau / dt)(1 - rho)`` (``rho = 0``, ``beta = 1/2`` for ``tau = 0``).
+
+The body is one disk or several (:class:`~safenav.filters.body.BodyModel`); a disk whose
+centre sits at ``c`` in the base frame is at ``p_k + R(yaw_k) c`` at knot ``k``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -20,10 +35,118 @@ from scipy.signal import lfilter
 from safenav.filters.perception import Frontier
 from safenav.geometry import Pose2D, unicycle_rollout
 
-__all__ = ["BaseModel", "MPCProblem", "PlanCheck", "distances", "row_values"]
+__all__ = ["FINE_KNOTS", "BaseModel", "MPCProblem", "PlanCheck", "PlanLayout", "disk_centres", "distances",
+           "row_values"]
 
 #: Smallest radius the clearance rows are scaled by [m] (a point at the base origin has radius 0).
 MIN_ROW_SCALE = 1e-3
+#: With move blocking, the first knots stay one period apart (the near future keeps its resolution).
+FINE_KNOTS = 5
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class PlanLayout:
+    """Which commands of a plan the optimiser chooses, and how the others follow.
+
+    Two kinds, by the call period (``hold``, in periods ``dt``, see :meth:`of`):
+
+    * ``hold = 1`` (calls every ``dt``): every period is a knot when ``periods <= max_commands``;
+      else the first :data:`FINE_KNOTS` periods, then knots spread evenly to the last period,
+      with the commands in between *linearly interpolated* (move blocking that keeps the full
+      braking authority: a knot-to-knot change of ``k`` periods may be ``k (a_max, alpha_max) dt``).
+    * ``hold >= 2`` (late calls: each command is held for ``hold`` periods): *blocks* of
+      ``hold`` equal commands, one knot per block; consecutive blocks differ by at most what the
+      acceleration limits allow in ``hold`` periods.
+
+    Attributes:
+        periods: ``P``, the commands of a plan (one per period).
+        max_commands: the most knots of a ``hold = 1`` layout.
+        hold: periods each command is held (1: a new command every period).
+        knots: ``(n,)`` the first period of each knot's command (``k_0 = 0``).
+        interpolation: ``(P, n)`` the matrix ``B`` with ``u = B U``.
+        changes: ``(n - 1,)`` periods of acceleration each knot-to-knot change may use.
+        period_changes: ``(P - 1,)`` periods of acceleration each period-to-period change may use.
+    """
+
+    periods: int
+    max_commands: int
+    hold: int
+    knots: np.ndarray
+    interpolation: np.ndarray
+    changes: np.ndarray
+    period_changes: np.ndarray
+
+    @classmethod
+    def of(cls, periods: int, max_commands: int, hold: int = 1) -> PlanLayout:
+        """The layout of a plan of ``periods`` commands, each held ``hold`` periods (see the class docstring)."""
+        return _layout(int(periods), int(max_commands), int(hold))
+
+    @property
+    def n_knots(self) -> int:
+        return int(self.knots.size)
+
+    @property
+    def identity(self) -> bool:
+        """Whether every period's command is chosen (``B`` is the identity)."""
+        return self.n_knots == self.periods
+
+    @property
+    def interpolated(self) -> bool:
+        """Whether some commands are interpolated between knots (a ``hold = 1`` layout with blocking)."""
+        return self.hold == 1 and not self.identity
+
+    def expand(self, knot_commands: np.ndarray) -> np.ndarray:
+        """The commands of every period ``(P, 2)`` from the knots' commands ``(n, 2)``."""
+        knot_commands = np.asarray(knot_commands, dtype=float).reshape(-1, 2)
+        return knot_commands.copy() if self.identity else self.interpolation @ knot_commands
+
+    def sample(self, commands: np.ndarray) -> np.ndarray:
+        """The knots' commands ``(n, 2)`` of a plan given per period ``(P, 2)``."""
+        return np.asarray(commands, dtype=float).reshape(-1, 2)[self.knots].copy()
+
+    def knot_bounds(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(n, 2)`` on the knots' commands from the bounds of every period ``(P, 2)``.
+
+        A block's command must satisfy the bounds of every period of its block; an interpolated
+        layout's knots their own period's (the periods in between get rows of their own where
+        the interpolation does not imply them).
+        """
+        if self.hold == 1:
+            return self.sample(lower), self.sample(upper)
+        return (np.maximum.reduceat(lower, self.knots, axis=0), np.minimum.reduceat(upper, self.knots, axis=0))
+
+
+@functools.lru_cache(maxsize=64)
+def _layout(periods: int, max_commands: int, hold: int) -> PlanLayout:
+    if hold > 1:
+        knots = np.arange(0, periods, hold)
+        interpolation = np.zeros((periods, knots.size))
+        interpolation[np.arange(periods), np.arange(periods) // hold] = 1.0
+        changes = np.full(knots.size - 1, float(hold))
+        period_changes = np.where(np.arange(1, periods) % hold == 0, float(hold), 0.0)
+    else:
+        if periods <= max_commands:
+            knots = np.arange(periods)
+        else:
+            fine = min(FINE_KNOTS, max_commands - 1)
+            coarse = np.rint(np.linspace(fine - 1, periods - 1, max_commands - fine + 1)).astype(int)[1:]
+            knots = np.unique(np.concatenate((np.arange(fine), coarse)))
+        interpolation = np.zeros((periods, knots.size))
+        for j in range(knots.size - 1):
+            start, stop = knots[j], knots[j + 1]
+            share = (np.arange(start, stop) - start) / (stop - start)
+            interpolation[start:stop, j] = 1.0 - share
+            interpolation[start:stop, j + 1] = share
+        interpolation[-1, -1] = 1.0
+        changes = np.diff(knots).astype(float)
+        period_changes = np.ones(periods - 1)
+    return PlanLayout(periods, max_commands, hold, *(_read_only(array) for array in (
+        knots, interpolation, changes, period_changes)))
 
 
 class BaseModel(NamedTuple):
@@ -68,13 +191,33 @@ class BaseModel(NamedTuple):
         return unicycle_rollout(Pose2D(), means, self.dt), velocities
 
     def coast(self, pose: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Where a lagging base still drifts after its last command (zero): ``tau v`` along the heading [m]."""
+        """The pose a lagging base still drifts to after its last command (zero): ``tau v`` along the heading."""
         drift = self.time_constant * velocity[0]
-        return np.array([pose[0] + drift * math.cos(pose[2]), pose[1] + drift * math.sin(pose[2])])
+        return np.array([pose[0] + drift * math.cos(pose[2]), pose[1] + drift * math.sin(pose[2]), pose[2]])
+
+    def knot_poses(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The poses a plan's clearance is checked at ``(K, 3)``: the end of every period and, for a
+        lag, where the base drifts to; with the rollout's poses ``(N + 1, 3)`` and velocities."""
+        poses, velocities = self.rollout(commands, velocity)
+        knots = poses[1:]
+        if self.time_constant > 0.0:
+            knots = np.vstack((knots, self.coast(poses[-1], velocities[-1])))
+        return knots, poses, velocities
+
+
+def disk_centres(poses: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Where disks centred at ``offsets`` ``(D, 2)`` (base frame) are at ``poses`` ``(K, 3)``: ``(K, D, 2)``."""
+    cos, sin = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+    x = poses[:, 0:1] + cos * offsets[None, :, 0] - sin * offsets[None, :, 1]
+    y = poses[:, 1:2] + sin * offsets[None, :, 0] + cos * offsets[None, :, 1]
+    return np.stack((x, y), axis=-1)
 
 
 class MPCProblem(NamedTuple):
-    """What one call of the filter optimises over, in the current base frame."""
+    """What one call of the filter optimises over, in the current base frame.
+
+    Radii are per point and per body disk (one column for the disk model).
+    """
 
     u_nom: np.ndarray
     """The nominal command ``(v [m/s], omega [rad/s])``."""
@@ -82,22 +225,33 @@ class MPCProblem(NamedTuple):
     """The velocity the plan starts from (measured, or the last command) [m/s, rad/s]."""
     points: np.ndarray
     """``(M, 2)`` every obstacle point a plan could come near, base frame [m]."""
+    uncertainty: np.ndarray
+    """``(M,)`` each point's position uncertainty (odometry, for remembered points; else 0) [m]."""
     radii: np.ndarray
-    """``(M,)`` distance the planner keeps every knot from each point [m]."""
+    """``(M, D)`` distance the planner aims to keep each disk centre from each point at every knot [m]."""
     guaranteed: np.ndarray
-    """``(M,)`` distance a verified plan keeps every knot from each point [m]."""
+    """``(M, D)`` distance a verified plan keeps each disk centre from each point at every knot [m]."""
+    floor: np.ndarray
+    """``(M, D)`` the nearest the planner may come by using the soft part of the buffer [m]: the
+    guaranteed radius, the buffer's actuator part and the growth of the point's uncertainty at the
+    next carry (never nearer than the point is now)."""
     lower: np.ndarray
-    """``(N, 2)`` lower bounds on the commands (limits, reachability, field of view, stop at the end)."""
+    """``(P, 2)`` lower bounds on the commands (limits, reachability, field of view, stop at the end)."""
     upper: np.ndarray
-    """``(N, 2)`` upper bounds on the commands."""
-    hold: int
-    """The first ``hold`` commands are equal (the call period is ``hold`` periods long)."""
+    """``(P, 2)`` upper bounds on the commands."""
+    layout: PlanLayout
+    """Which commands are chosen; ``layout.hold`` periods per command (the call period)."""
     frontier: Frontier
     """The part of the outline facing unknown space."""
     min_barrier: float
-    """Smallest ``||o|| - (R + margin)`` over every point, at the current pose [m]."""
+    """Smallest ``||c_d - o|| - (rho_d + margin) - e_o`` over every disk and point, at the current pose [m]."""
     clearance: float
     """Distance from the body to the nearest point [m]."""
+
+    @property
+    def hold(self) -> int:
+        """Periods each command is held (the call period in periods)."""
+        return self.layout.hold
 
 
 class PlanCheck(NamedTuple):
@@ -106,26 +260,26 @@ class PlanCheck(NamedTuple):
     limits: float
     """Largest violation of a command bound, an acceleration row or the hold [m/s or rad/s] (<= 0 if none)."""
     clearance: float
-    """Smallest ``||p_k - o|| - guaranteed(o)`` over the knots and every point [m] (``inf`` without points)."""
+    """Smallest ``||c - o|| - guaranteed(o)`` over the knots, the disks and every point [m] (``inf`` without points)."""
     planned: float
-    """Smallest ``||p_k - o|| - radii(o)`` [m]: negative means the plan uses some of the buffer."""
+    """Smallest ``||c - o|| - radii(o)`` [m]: negative means the plan uses some of the buffer."""
     distances: np.ndarray
-    """``(M,)`` the smallest knot distance ``||p_k - o||`` per point [m]."""
+    """``(M, D)`` the smallest knot distance from each disk centre to each point [m]."""
     poses: np.ndarray
     """``(N + 1, 3)`` the predicted poses ``(x, y, yaw)``, starting at the origin."""
     velocities: np.ndarray
     """``(N + 1, 2)`` the predicted velocities."""
 
 
-def distances(knots: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Per point, the smallest distance to any of ``knots`` [m]."""
+def distances(centres: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Per point and disk, the smallest distance from the disk's centres ``(K, D, 2)`` to the point: ``(M, D)`` [m]."""
     if points.shape[0] == 0:
-        return np.empty(0)
-    dx = knots[:, 0:1] - points[:, 0]
-    dy = knots[:, 1:2] - points[:, 1]
-    return np.sqrt(np.min(dx * dx + dy * dy, axis=0))
+        return np.empty((0, centres.shape[1]))
+    dx = centres[:, :, 0, None] - points[None, None, :, 0]
+    dy = centres[:, :, 1, None] - points[None, None, :, 1]
+    return np.sqrt(np.min(dx * dx + dy * dy, axis=0)).T
 
 
 def row_values(distance: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """The clearance rows as the NLP writes them, ``(d^2 - r^2) / (2 r)`` (about ``d - r``) [m]."""
+    """The clearance rows as the optimiser writes them, ``(d^2 - r^2) / (2 r)`` (about ``d - r``) [m]."""
     return (distance * distance - radii * radii) * (0.5 / np.maximum(radii, MIN_ROW_SCALE))

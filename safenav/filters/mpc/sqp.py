@@ -1,0 +1,334 @@
+"""The MPC's NLP and its fast solver: sequential quadratic programming with a QP back-end called directly.
+
+**The NLP** (:class:`PlanNLP`), over the control knots' commands ``U`` (the commands of every
+period are ``u = B U``: interpolated, or in blocks held for a late call's period,
+:class:`~safenav.filters.mpc.plan.PlanLayout`) and two slacks::
+
+    min   sum_k c_k [w_v (v_k - v_t)^2 + w_omega (omega_k - omega_t)^2]
+          + buffer_weight s_b^2 + slack_weight (s_h + s_h^2)
+    s.t.  lower_k <= u_k <= upper_k                         every period k (limits, reach, unknown space, stop)
+          |U_{j+1} - U_j| <= c_j (a_max, alpha_max) dt     (acceleration between knots, c_j periods)
+          (||c_kd - o||^2 - r_od^2) / (2 r_od) + relief_od s_b + s_h >= 0   every knot k, disk d, point o
+          0 <= s_b <= buffer,  s_h >= 0
+
+``c_kd`` is the centre of body disk ``d`` at the end of period ``k`` (and where a lagging base
+drifts to); ``(v_t, omega_t)`` is the nominal clipped to the velocity limits, held along the
+plan (*tracking*): ``c_0 = 1`` for the command sent and ``c_k = tracking / (P - 1)`` for the
+rest, so the plan prefers to keep the nominal's speed and turn (steer round an obstacle) over
+braking in front of it, while the first command stays as near the nominal as the rest allows.
+The planned radius ``r_od`` includes a buffer beyond the radius the filter guarantees; the
+buffer slack ``s_b`` (cheap) may use it, ``relief_od`` being the share of the buffer the
+point has (0 for a point already nearer than the guaranteed radius, which may not be
+approached at all); ``s_h`` (heavy) relaxes the guaranteed radius itself.
+
+**The solvers.** :class:`DirectSQP` (default): casadi gives the knot poses and their exact
+Jacobian (:class:`~safenav.filters.mpc.nlp.PlanModel`, one Function built once), each SQP
+step's QP (the cost's own constant Hessian, the clearance rows linearised) is assembled in
+numpy and solved by a :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by
+default, the CBF's back-end interface), with full steps from the warm start, until the step
+is below :data:`STEP_TOLERANCE`. Only the clearance rows that can bind are passed to the QP;
+any other row its answer violates is added and the QP solved again, so each step is the
+step of the QP with every row. The deadline is checked before every QP: a solve overruns it by
+at most one QP.
+:class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
+(the reference) or Ipopt.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from safenav.filters.mpc.nlp import PlanModel
+from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
+from safenav.filters.qp import QPBackend, QPData
+
+__all__ = ["STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver", "knot_changes"]
+
+#: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
+STEP_TOLERANCE = 1e-5
+#: A knot's nearest row goes to the QP at once when its value is at most this [m] (the others only
+#: when an answer violates them).
+ROW_WINDOW = 0.2
+#: Rows with a larger value [m] are not even checked within a step (no step of one iteration moves
+#: a disk that far); every row is re-evaluated at the next iterate.
+CHECK_WINDOW = 1.0
+#: A linearised row the QP's answer misses by more than this [m] is added to the QP.
+ROW_TOLERANCE = 1e-9
+#: A row within this of holding with equality [m] stays in the next iteration's QP.
+ACTIVE_TOLERANCE = 1e-6
+#: Rounds of row generation within one SQP step before every checked row goes to the QP.
+MAX_ROW_ROUNDS = 6
+
+
+@dataclass(frozen=True)
+class PlanCost:
+    """The cost of a plan (see the module docstring).
+
+    Attributes:
+        weights: ``(w_v, w_omega)`` on the command deviations [s^2/m^2, s^2/rad^2].
+        tracking: total weight of the later commands' deviations, relative to the first's.
+        buffer_weight: cost of the buffer slack [1/m^2].
+        slack_weight: linear and quadratic cost of the slack [1/m, 1/m^2].
+    """
+
+    weights: tuple[float, float]
+    tracking: float
+    buffer_weight: float
+    slack_weight: float
+
+    def period_weights(self, periods: int) -> np.ndarray:
+        """``c_k`` for ``k = 0..P-1``: 1 for the command sent, ``tracking / (P - 1)`` for each later one."""
+        weights = np.full(periods, self.tracking / max(periods - 1, 1))
+        weights[0] = 1.0
+        return weights
+
+
+class PlanNLP(NamedTuple):
+    """One instance of the NLP: the data a solver needs besides the cost and the model."""
+
+    velocity: np.ndarray
+    """``(2,)`` the velocity the plan starts from [m/s, rad/s]."""
+    target: np.ndarray
+    """``(2,)`` the nominal command, clipped to the velocity limits [m/s, rad/s]."""
+    points: np.ndarray
+    """``(K, 2)`` obstacle points in the optimiser's slots [m]."""
+    radii: np.ndarray
+    """``(K, D)`` planned radius per point and disk [m]."""
+    relief: np.ndarray
+    """``(K, D)`` share of the buffer each row may use, in [0, 1]."""
+    lower: np.ndarray
+    """``(P, 2)`` lower bounds of every period's command."""
+    upper: np.ndarray
+    """``(P, 2)`` upper bounds of every period's command."""
+    layout: PlanLayout
+    """Which commands are chosen (``u = B U``)."""
+    step: np.ndarray
+    """``(2,)`` the largest command change per period ``(a_max dt, alpha_max dt)``."""
+    buffer: float
+    """The largest buffer slack [m]."""
+    start: np.ndarray
+    """``(n, 2)`` the knots' commands to start from (the warm start)."""
+
+
+class NLPOutcome(NamedTuple):
+    """What a solver returned for one :class:`PlanNLP`."""
+
+    knots: np.ndarray | None
+    """``(n, 2)`` the knots' commands, or ``None`` when the solver failed or gave up."""
+    buffer_slack: float
+    """``s_b`` [m]."""
+    slack: float
+    """``s_h`` [m]."""
+    status: str
+    """The solver's own status word."""
+    iterations: int
+    """SQP iterations."""
+    solve_time: float
+    """Wall time of the solve [s]."""
+    abandoned: bool = False
+    """The deadline passed before the solve finished (``knots`` is ``None``)."""
+
+
+class PlanSolver(Protocol):
+    """A solver of the MPC's NLP (:class:`DirectSQP`, or the casadi reference)."""
+
+    name: str
+
+    def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
+              clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
+        """Solve ``nlp`` from ``nlp.start``; give up when ``clock()`` passes ``deadline``."""
+
+
+def knot_changes(layout: PlanLayout, step: np.ndarray) -> np.ndarray:
+    """``(n - 1, 2)`` the largest ``|U_{j+1} - U_j|``: the layout's periods of acceleration times ``step``."""
+    return np.outer(layout.changes, step)
+
+
+class _LayoutData(NamedTuple):
+    """What the direct SQP precomputes per layout."""
+
+    hessian: np.ndarray
+    column_weights: np.ndarray
+    differences: np.ndarray
+    expansion: np.ndarray | None
+
+
+class DirectSQP:
+    """Sequential quadratic programming over a :class:`~safenav.filters.qp.QPBackend` (see the module docstring).
+
+    Args:
+        model: the plan model (knot poses and their Jacobian with respect to every period's command).
+        offsets: ``(D, 2)`` the body disks' centres in the base frame [m].
+        cost: the cost.
+        backend: the QP solver of each step.
+        max_iter: SQP iterations before the last iterate is returned as it is (the filter verifies it).
+    """
+
+    def __init__(self, model: PlanModel, offsets: np.ndarray, cost: PlanCost, backend: QPBackend,
+                 max_iter: int) -> None:
+        self.model = model
+        self.offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+        self.cost = cost
+        self.qp = backend
+        self.max_iter = int(max_iter)
+        self.name = f"sqp+{backend.name}"
+        self._centred = not np.any(self.offsets)
+        self._layouts: dict[tuple[int, int, int], _LayoutData] = {}
+
+    def _prepare(self, layout: PlanLayout) -> _LayoutData:
+        """The cost's Hessian, the knot differences and ``B`` (per axis) of a layout, computed once."""
+        key = (layout.periods, layout.max_commands, layout.hold)
+        data = self._layouts.get(key)
+        if data is not None:
+            return data
+        n = layout.n_knots
+        n_vars = 2 * n + 2
+        weights = self.cost.period_weights(layout.periods)
+        interpolation = layout.interpolation
+        hessian = np.zeros((n_vars, n_vars))
+        for axis, weight in enumerate(self.cost.weights):
+            hessian[axis:2 * n:2, axis:2 * n:2] = 2.0 * weight * interpolation.T @ (weights[:, None] * interpolation)
+        hessian[2 * n, 2 * n] = 2.0 * self.cost.buffer_weight
+        hessian[2 * n + 1, 2 * n + 1] = 2.0 * self.cost.slack_weight
+        differences = np.zeros((2 * (n - 1), n_vars))
+        for j in range(n - 1):
+            for axis in range(2):
+                differences[2 * j + axis, 2 * (j + 1) + axis] = 1.0
+                differences[2 * j + axis, 2 * j + axis] = -1.0
+        expansion = None if layout.identity else np.kron(interpolation, np.eye(2))
+        data = _LayoutData(hessian, interpolation.T @ weights, differences, expansion)
+        self._layouts[key] = data   # a handful per filter: one per call period seen
+        return data
+
+    def _linear_rows(self, nlp: PlanNLP, data: _LayoutData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rows that do not depend on the iterate: acceleration between knots, interpolated bounds."""
+        layout = nlp.layout
+        n_vars = 2 * layout.n_knots + 2
+        pieces = [data.differences]
+        change = knot_changes(layout, nlp.step).ravel()
+        lows, highs = [-change], [change]
+        if layout.interpolated:
+            interpolation = layout.interpolation
+            knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
+            for axis in range(2):
+                implied_low = interpolation @ knots_lower[:, axis]
+                implied_high = interpolation @ knots_upper[:, axis]
+                needed = (nlp.lower[:, axis] > implied_low + 1e-12) | (nlp.upper[:, axis] < implied_high - 1e-12)
+                if needed.any():
+                    rows = np.zeros((int(needed.sum()), n_vars))
+                    rows[:, axis:2 * layout.n_knots:2] = interpolation[needed]
+                    pieces.append(rows)
+                    lows.append(nlp.lower[needed, axis])
+                    highs.append(nlp.upper[needed, axis])
+        return np.vstack(pieces), np.concatenate(lows), np.concatenate(highs)
+
+    def _centres(self, poses: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Disk centres ``(K, D, 2)`` at the knots and their Jacobian ``(K, D, 2, m)``."""
+        if self._centred:
+            return poses[:, None, :2], jacobian[:, None, :2, :]
+        cos, sin = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+        ox, oy = self.offsets[None, :, 0], self.offsets[None, :, 1]
+        rotated = np.stack((cos * ox - sin * oy, sin * ox + cos * oy), axis=-1)         # (K, D, 2)
+        centres = poses[:, None, :2] + rotated
+        # d(R(yaw) o)/d yaw = perp(R(yaw) o) = (-y, x).
+        turning = np.stack((-rotated[..., 1], rotated[..., 0]), axis=-1)
+        centre_jacobian = jacobian[:, None, :2, :] + turning[..., None] * jacobian[:, None, None, 2, :]
+        return centres, centre_jacobian
+
+    def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
+              clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
+        start_time = clock()
+        layout = nlp.layout
+        data = self._prepare(layout)
+        n = layout.n_knots
+        n_vars = 2 * n + 2
+        knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
+        lower_bounds = np.concatenate((knots_lower.ravel(), (0.0, 0.0)))
+        upper_bounds = np.concatenate((knots_upper.ravel(), (nlp.buffer, np.inf)))
+        knots = np.clip(np.asarray(nlp.start, dtype=float).ravel(), lower_bounds[:-2], upper_bounds[:-2])
+        linear, linear_low, linear_high = self._linear_rows(nlp, data)
+        gradient = np.zeros(n_vars)
+        target = np.asarray(nlp.target, dtype=float)
+        for axis, weight in enumerate(self.cost.weights):
+            gradient[axis:2 * n:2] = -2.0 * weight * target[axis] * data.column_weights
+        gradient[-1] = self.cost.slack_weight
+        radii = np.maximum(nlp.radii, MIN_ROW_SCALE)[:, None, :]            # (M, 1, D)
+        shape = (nlp.points.shape[0], self.model.n_poses, self.offsets.shape[0])
+        relief = np.broadcast_to(nlp.relief[:, None, :], shape)
+        n_fixed = n_vars + linear.shape[0]
+        # Which rows were active at the last answer: the next QP starts from them (a warm start of
+        # the active set, kept per row by its point, knot and disk).
+        row_state = np.zeros(shape, dtype=np.int8)
+        fixed_state: np.ndarray | None = None
+        buffer_slack = slack = 0.0
+        status = "max_iter"
+        iterations = 0
+        for iterations in range(1, self.max_iter + 1):
+            if clock() > deadline:
+                return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True)
+            commands = knots.reshape(n, 2) if data.expansion is None else layout.expand(knots.reshape(n, 2))
+            poses, jacobian = self.model(commands, nlp.velocity)
+            if data.expansion is not None:
+                jacobian = jacobian @ data.expansion                                    # d pose / d U
+            centres, centre_jacobian = self._centres(poses, jacobian)
+            # Row gradients are (c - o) / r times the centre's Jacobian.
+            direction = (centres[None] - nlp.points[:, None, None, :]) / radii[..., None]   # (M, K, D, 2)
+            values = 0.5 * radii * (np.einsum("mkdi,mkdi->mkd", direction, direction) - 1.0)
+            # Per knot and disk the nearest point when it is within ROW_WINDOW, and the rows active at
+            # the previous answer, go to the QP at once; any other row near enough to bind is added
+            # when the answer violates it.
+            working = row_state != 0
+            if values.shape[0]:
+                nearest = np.argmin(values, axis=0)
+                knot_index, disk_index = np.indices(nearest.shape)
+                close = values[nearest, knot_index, disk_index] <= ROW_WINDOW
+                working[nearest[close], knot_index[close], disk_index[close]] = True
+            candidates = values <= CHECK_WINDOW
+            answer = None
+            for round_index in range(MAX_ROW_ROUNDS + 1):
+                if round_index > 0 and clock() > deadline:
+                    return NLPOutcome(None, 0.0, 0.0, "deadline", iterations, clock() - start_time, abandoned=True)
+                if round_index == MAX_ROW_ROUNDS:
+                    working |= candidates
+                point, knot, disk = np.nonzero(working)
+                grads = np.einsum("ri,rij->rj", direction[point, knot, disk], centre_jacobian[knot, disk])
+                clearance = np.empty((point.size, n_vars))
+                clearance[:, :2 * n] = -grads
+                clearance[:, 2 * n] = -relief[point, knot, disk]
+                clearance[:, 2 * n + 1] = -1.0
+                guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[point, knot, disk]))
+                qp = QPData(data.hessian, gradient, np.vstack((linear, clearance)),
+                            np.concatenate((linear_high, values[point, knot, disk] - grads @ knots)),
+                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(point.size, -np.inf))),
+                            guess)
+                outcome = self.qp.solve(qp)
+                answer = outcome.x
+                if answer is None:
+                    return NLPOutcome(None, 0.0, 0.0, f"QP failed ({outcome.status})", iterations,
+                                      clock() - start_time)
+                # Every row linearised at the answer, through the centres' displacement.
+                moved = centre_jacobian @ (answer[:2 * n] - knots)                      # (K, D, 2)
+                linearised = values + np.einsum("mkdi,kdi->mkd", direction, moved) \
+                    + relief * answer[2 * n] + answer[2 * n + 1]
+                row_state = np.zeros(shape, dtype=np.int8)
+                if outcome.active is not None:
+                    fixed_state = outcome.active[:n_fixed]
+                    row_state[point, knot, disk] = outcome.active[n_fixed:]
+                else:
+                    row_state[point, knot, disk] = linearised[point, knot, disk] < ACTIVE_TOLERANCE
+                violated = candidates & ~working & (linearised < -ROW_TOLERANCE)
+                if not violated.any():
+                    break
+                working |= violated
+            change = float(np.max(np.abs(answer[:2 * n] - knots)))
+            knots = answer[:2 * n].copy()
+            buffer_slack, slack = float(answer[2 * n]), float(answer[2 * n + 1])
+            if change <= STEP_TOLERANCE:
+                status = "converged"
+                break
+        return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time)
