@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import math
 
+from safenav._checks import angle, positive
 from safenav.geometry import Pose2D
 from safenav.reference.base import (
     Policy,
     Proximity,
     RangeCheck,
-    angle_in,
     check_sector,
     command_pair,
     limited,
     optional_robot,
-    positive_number,
     require_scan,
 )
 from safenav.robot import Command, RobotSpec
@@ -48,7 +47,7 @@ class ObstacleAvoidance(Policy):
     * The cone is found by angle through the scan's mount pose (``scan.sector``), not by
       index ranges, so the wrap-around of the Puzzlebot's 0..2pi scan (the cone spans both ends of
       the ranges array, beams 345..359 and 0..14) and any other lidar convention are handled the same way.
-    * Readings follow REP-117 (DESIGN.md section 2): a ``-inf`` reading (object closer than
+    * Readings follow REP-117: a ``-inf`` reading (object closer than
       ``range_min``) turns; finite values outside ``[range_min, range_max]`` are discarded
       as the sensor's spec says (the tutorial would turn on a spurious reading below
       ``range_min``); ``NaN`` readings are ignored as the tutorial ignores invalid ones.
@@ -86,8 +85,8 @@ class ObstacleAvoidance(Policy):
             InvalidConfig: a value is out of range (the message names it).
         """
         owner = type(self).__name__
-        self.threshold = positive_number(owner, "threshold", threshold)
-        self.half_angle = angle_in(owner, "half_angle", half_angle, math.pi)
+        self.threshold = positive(f"{owner}.threshold", threshold)
+        self.half_angle = angle(f"{owner}.half_angle", half_angle, high=math.pi)
         self.cruise = command_pair(owner, "cruise", cruise)
         self.turn = command_pair(owner, "turn", turn)
         self.robot = optional_robot(owner, robot)

@@ -3,21 +3,19 @@
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Any
 
+from safenav._checks import angle, optional_integer, positive
 from safenav.errors import InvalidConfig, InvalidScan
 from safenav.geometry import Pose2D
 from safenav.reference.base import (
     Policy,
     Proximity,
     RangeCheck,
-    angle_in,
     check_beam,
     check_sector,
     limited,
     optional_robot,
-    positive_number,
     require_scan,
 )
 from safenav.robot import Command, RobotSpec
@@ -56,7 +54,7 @@ class StopAtWall(Policy):
     * The front is found by angle through the scan's mount pose (the beam nearest base-frame
       direction 0, or the nearest reading in a cone of ``front_half_width``), so it works on
       any lidar convention.
-    * Readings follow REP-117 (DESIGN.md section 2): ``+inf`` (nothing within ``range_max``)
+    * Readings follow REP-117: ``+inf`` (nothing within ``range_max``)
       goes when ``range_max >= threshold``, ``-inf`` (object closer than ``range_min``) stops,
       and a front with no informative reading (``NaN``, a finite value outside
       ``[range_min, range_max]``, or a front outside the field of view) stops: the robot does
@@ -102,20 +100,16 @@ class StopAtWall(Policy):
                 ``front_index`` and a non-zero ``front_half_width`` are given.
         """
         owner = type(self).__name__
-        self.speed = positive_number(owner, "speed", speed)
-        self.threshold = positive_number(owner, "threshold", threshold)
-        self.front_half_width = angle_in(owner, "front_half_width", front_half_width, 0.5 * math.pi,
-                                         allow_zero=True)
-        if front_index is not None and (
-            isinstance(front_index, bool) or not isinstance(front_index, numbers.Integral) or front_index < 0
-        ):
-            raise InvalidConfig(f"{owner}.front_index must be an integer >= 0 or None, got {front_index!r}")
+        self.speed = positive(f"{owner}.speed", speed)
+        self.threshold = positive(f"{owner}.threshold", threshold)
+        self.front_half_width = angle(f"{owner}.front_half_width", front_half_width, high=0.5 * math.pi,
+                                      allow_zero=True)
+        self.front_index = optional_integer(f"{owner}.front_index", front_index, low=0)
         if front_index is not None and self.front_half_width > 0.0:
             raise InvalidConfig(
                 f"{owner}: front_index={front_index!r} reads one raw beam; front_half_width must be 0, "
                 f"got {front_half_width!r}"
             )
-        self.front_index = None if front_index is None else int(front_index)
         self.robot = optional_robot(owner, robot)
         self._state = STATES[0]
         self._front: RangeCheck | None = None
