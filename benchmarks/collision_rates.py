@@ -32,7 +32,8 @@ import argparse
 import csv
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
 from benchmarks.common import names, run_cli, write_json
@@ -54,7 +55,8 @@ FULL_SEEDS = 20
 """Seeds per cell of the default sweep: 13 (scenario, policy) pairs x 4 filters x 20 = 1040 episodes, the
 fewest above 1000; sized for the 15-minute budget on the 2-core development machine."""
 
-QUICK = {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0}
+QUICK: Mapping[str, Any] = MappingProxyType(
+    {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0})
 """The ``--quick`` subset: the buggy tutorial that always crashes, a cluttered arena and a goal task."""
 
 def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
@@ -149,8 +151,8 @@ def _sweep(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------------------- CSV
 
 
-_NESTED = {"collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"),
-           "time_to_goal": ("mean", "median")}
+_NESTED: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"), "time_to_goal": ("mean", "median")})
 """Record fields that become several CSV columns."""
 
 

@@ -31,7 +31,8 @@ if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this ch
 
 import argparse
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
 from benchmarks.common import markdown_table, names, numbers, run_cli, write_json
@@ -40,13 +41,13 @@ from safenav.experiments import Cell, EpisodeSpec, cell_record, run_specs
 from safenav.filters import default_margin
 from safenav.scenarios import scenario
 
-FAULTS: dict[str, tuple[float, ...]] = {
+FAULTS: Mapping[str, tuple[float, ...]] = MappingProxyType({
     "range_noise": (0.0, 0.01, 0.03, 0.05),
     "dropout": (0.1, 0.3),
     "scan_latency": (1, 2),
     "actuation_noise": (0.05, 0.10),
     "mount_yaw_error": (math.radians(1.0), math.radians(3.0)),
-}
+})
 """Fault name (a :class:`~safenav.sim_bullet.SimConfig` field) and the levels tried."""
 
 CELLS = (("clutter_rosbot", "random_walk"), ("clutter_puzzlebot", "random_walk"), ("clutter_m2wr", "random_walk"),

@@ -19,7 +19,7 @@ import sys
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import ModuleType
+from types import MappingProxyType, ModuleType
 from typing import TYPE_CHECKING
 
 from safenav import __version__
@@ -29,8 +29,9 @@ from safenav.errors import InvalidConfig, SafeNavError
 if TYPE_CHECKING:
     from safenav.experiments import EpisodeOutcome
 
-BENCHMARKS = {"collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
-              "robustness": "robustness", "soak": "soak", "braking": "braking"}
+BENCHMARKS: Mapping[str, str] = MappingProxyType({
+    "collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
+    "robustness": "robustness", "soak": "soak", "braking": "braking"})
 """Short names of ``safenav bench NAME`` and the module of ``benchmarks/`` each runs; every other
 module of a checkout's ``benchmarks/`` runs under its own name."""
 

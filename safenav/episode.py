@@ -213,7 +213,7 @@ def run_episode(
     if safety_filter is not None:
         safety_filter.reset()
     with BulletSim(world, robot, config.sim, seed=seed) as sim:
-        state = sim.reset(seed=seed)
+        state = sim.reset()
         goal = world.goal
         start_goal_distance = _distance(state.pose, goal) if goal is not None else None
         poses, velocities, times, clearances = [state.pose], [state.velocity], [state.time], [state.clearance]

@@ -68,7 +68,7 @@ PyBullet comes with the ``sim`` extra; without it, importing this module raises
 :class:`~safenav.errors.MissingDependency` with the line ``pip install "safenav[sim]"``. The
 line PyBullet prints when it is imported ("pybullet build time: ...") is swallowed.
 
-This module is longer than most (about 500 lines) because it is one class, the simulator, with
+This module is longer than most (about 630 lines) because it is one class, the simulator, with
 its config and state; the obstacle mesh lives in :mod:`safenav.worlds` and the base models in
 :mod:`safenav.base_models`.
 """
@@ -120,7 +120,7 @@ def _output_swallowed() -> Iterator[None]:
         os.dup2(null, 2)
         yield
     finally:
-        with contextlib.suppress(OSError, AttributeError):
+        with contextlib.suppress(OSError, AttributeError, TypeError):   # TypeError: no C library handle (Windows)
             ctypes.CDLL(None).fflush(None)   # C stdio buffers what goes to a pipe: flush it while it is swallowed
         for fd, copy in zip((1, 2), saved, strict=True):
             os.dup2(copy, fd)

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
 from safenav._checks import choice
 
 __all__ = ["FILTER_LABELS", "markdown", "outcome_table", "timing_table"]
 
-FILTER_LABELS = {"none": "naive (no filter)", "zones": "zones", "cbf": "CBF-QP", "mpc": "MPC"}
+FILTER_LABELS: Mapping[str, str] = MappingProxyType(
+    {"none": "naive (no filter)", "zones": "zones", "cbf": "CBF-QP", "mpc": "MPC"})
 """How tables, legends and the demo name each filter."""
 
 
@@ -45,7 +47,7 @@ def _goal(record: dict[str, Any]) -> str:
     return text + (f" in {record['time_to_goal']['median']:.1f} s" if record["time_to_goal"] else "")
 
 
-_COLUMNS = {
+_COLUMNS: Mapping[str, Callable[[dict[str, Any]], Any]] = MappingProxyType({
     "scenario": lambda r: r["scenario"],
     "robot": lambda r: r["robot"],
     "policy": lambda r: r["policy"],
@@ -59,7 +61,7 @@ _COLUMNS = {
     "goal reached": _goal,
     "stuck [s]": lambda r: f"{r['stuck_time']:.1f}",
     "fallbacks": lambda r: r["fallbacks"],
-}
+})
 """How each column of :func:`outcome_table` is formatted from a cell record."""
 
 

@@ -6,7 +6,8 @@ anything; experiments import no plotting at run time.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,10 +23,11 @@ if TYPE_CHECKING:
 
 __all__ = ["FILTER_COLORS", "clearance_figure", "collision_rate_figure", "draw_overlay", "overlay_figure"]
 
-FILTER_COLORS = {"none": "#d62728", "zones": "#ff7f0e", "cbf": "#1f77b4", "mpc": "#2ca02c"}
+FILTER_COLORS: Mapping[str, str] = MappingProxyType(
+    {"none": "#d62728", "zones": "#ff7f0e", "cbf": "#1f77b4", "mpc": "#2ca02c"})
 """Line colour of each filter in the figures."""
 
-FILTER_DASHES = {"zones": (0, (6, 2, 1, 2)), "mpc": (0, (4, 2))}
+FILTER_DASHES: Mapping[str, Any] = MappingProxyType({"zones": (0, (6, 2, 1, 2)), "mpc": (0, (4, 2))})
 """Line style of each filter in the overlays (solid otherwise), so that coinciding paths all show."""
 
 

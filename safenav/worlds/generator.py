@@ -266,7 +266,7 @@ def reachable(world: World, radius: float, start: Sequence[float], goal: Sequenc
         start: start position ``(x, y, ...)`` [m].
         goal: goal position ``(x, y)`` [m].
     """
-    from scipy import ndimage   # here: 0.1 s of import that only the reachability check needs
+    from scipy import ndimage  # here: 0.1 s of import that only the reachability check needs
 
     xmin, ymin, xmax, ymax = world.bounds
     xs = np.arange(xmin, xmax + GRID_RESOLUTION, GRID_RESOLUTION)

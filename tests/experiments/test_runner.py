@@ -7,6 +7,7 @@ import pytest
 
 from safenav import InvalidConfig, UnknownName
 from safenav.experiments import EpisodeSpec, Progress, cell_records, episode_specs, matrix, outcome_table, run_specs
+from safenav.scenarios import scenario
 
 
 def test_bad_names_fail_before_any_episode():
@@ -58,6 +59,9 @@ def test_a_recorded_spec_returns_its_trajectory():
     (outcome,) = run_specs([spec], workers=1, progress=False)
     assert outcome.robot == "rosbot"
     assert outcome.trajectory is not None and len(outcome.trajectory.pose) == outcome.metrics.steps + 1 == 21
+    assert outcome.world == scenario("stop_at_wall").world(0)   # the world it ran in, for pictures
+    assert tuple(outcome.trajectory.pose[0]) == tuple(outcome.world.start)
+    assert outcome.collision_point() is None
 
 
 def _progress_lines(total: int, updates: int) -> list[str]:

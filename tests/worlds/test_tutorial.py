@@ -52,3 +52,28 @@ def test_wall_follower_starts_with_the_wall_on_the_right_and_has_corners_both_wa
 def test_unknown_tutorial_world_lists_the_names():
     with pytest.raises(UnknownName, match="obstacle_avoidance, stop_at_wall, wall_follower"):
         tutorial_world("maze")
+
+
+@pytest.mark.parametrize("name", TUTORIAL_WORLDS)
+def test_a_seed_jitters_the_start_within_the_tutorials_bounds(name):
+    tutorial = TUTORIALS[name]
+    built = tutorial.world().start
+    position, heading = tutorial.start_jitter
+    starts = [tutorial.world(seed).start for seed in range(20)]
+    assert len(set(starts)) == 20 and tutorial.world(3) == tutorial.world(3)
+    for start in starts:
+        assert abs(start.x - built.x) <= position and abs(start.y - built.y) <= position
+        assert abs(start.yaw - built.yaw) <= heading
+    assert tutorial.world(3).obstacles == tutorial.world().obstacles   # only the start moves
+
+
+def test_the_tutorial_table_is_read_only_and_names_robots_and_policies_that_exist():
+    from safenav.reference import POLICY_NAMES
+    from safenav.robot import PRESET_NAMES
+
+    assert TUTORIAL_WORLDS == tuple(TUTORIALS) == ("stop_at_wall", "obstacle_avoidance", "wall_follower")
+    assert [t.robot for t in TUTORIALS.values()] == list(PRESET_NAMES)
+    assert all({t.policy, t.published_policy} <= set(POLICY_NAMES) for t in TUTORIALS.values())
+    assert TUTORIALS["stop_at_wall"].published_policy == "stop_at_wall_buggy"
+    with pytest.raises(TypeError):
+        TUTORIALS["maze"] = TUTORIALS["stop_at_wall"]
