@@ -4,44 +4,81 @@
 name           filter
 =============  ==========================================================================
 ``cbf``        :class:`CBFSafetyFilter`: control-barrier-function QP from lidar points
-``mpc``        :class:`~safenav.filters.mpc.MPCSafetyFilter`: predictive, braking-safe plan
+``mpc``        :class:`MPCSafetyFilter`: predictive, braking-safe plan (casadi)
 ``zones``      :class:`ZonesFilter`: stop/slowdown polygons, like ROS 2's collision monitor
 ``none``       no filter (``make_filter`` returns ``None``)
 =============  ==========================================================================
+
+One concept per module: ``base`` (the call template, results, statuses and reasons),
+``defaults`` (settings derived from the robot), ``body`` (disk or footprint cover),
+``perception`` (points, unknown region, memory), ``rows`` (constraint families), ``qp``
+(QP back-ends), ``cbf``, ``mpc/`` (config, plan model, NLP, filter), ``zones``, ``contract``
+(:func:`check_filter`, the contract every filter meets).
 """
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import Callable
+from types import MappingProxyType
 from typing import Any
 
-from safenav.errors import UnknownName
-from safenav.filters.base import BRAKING_STATUSES, FilterResult, FilterStatus, SafetyFilter
+from safenav import _checks
+from safenav.filters.base import BRAKING_STATUSES, FilterResult, FilterStatus, Reason, SafetyFilter
+from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFConfig, CBFSafetyFilter
+from safenav.filters.contract import FilterContractError, check_filter
+from safenav.filters.defaults import default_margin
 from safenav.filters.mpc import MPCConfig, MPCSafetyFilter
 from safenav.filters.qp import available_solvers
-from safenav.filters.reduction import default_margin
 from safenav.filters.zones import ZonesConfig, ZonesFilter
 from safenav.robot import RobotSpec
 
 __all__ = [
     "BRAKING_STATUSES",
+    "FILTERS",
     "FILTER_NAMES",
+    "BodyModel",
     "CBFConfig",
     "CBFSafetyFilter",
+    "FilterContractError",
     "FilterResult",
     "FilterStatus",
     "MPCConfig",
     "MPCSafetyFilter",
+    "Reason",
     "SafetyFilter",
     "ZonesConfig",
     "ZonesFilter",
     "available_solvers",
+    "check_filter",
     "default_margin",
     "make_filter",
 ]
 
-FILTER_NAMES = ("none", "zones", "cbf", "mpc")
+FILTERS: MappingProxyType[str, str | None] = MappingProxyType({
+    "none": None,
+    "zones": "safenav.filters.zones:ZonesFilter",
+    "cbf": "safenav.filters.cbf:CBFSafetyFilter",
+    "mpc": "safenav.filters.mpc:MPCSafetyFilter",
+})
+"""The one table of filters: name -> ``module:class`` (``None`` for no filter)."""
+
+FILTER_NAMES = tuple(FILTERS)
 """Names :func:`make_filter` accepts."""
+
+
+def filter_class(name: str) -> Callable[..., SafetyFilter] | None:
+    """The class registered as ``name`` (``None`` for ``"none"``).
+
+    Raises:
+        UnknownName: ``name`` is not a filter (the message lists them).
+    """
+    target = FILTERS[_checks.choice("filter", name, FILTER_NAMES)]
+    if target is None:
+        return None
+    module, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module), attribute)
 
 
 def make_filter(name: str, robot: RobotSpec, dt: float = 0.05, **kwargs: Any) -> SafetyFilter | None:
@@ -56,14 +93,5 @@ def make_filter(name: str, robot: RobotSpec, dt: float = 0.05, **kwargs: Any) ->
     Raises:
         UnknownName: ``name`` is not a filter (the message lists them).
     """
-    if name == "none":
-        return None
-    if name == "zones":
-        return ZonesFilter(robot, dt, **kwargs)
-    if name == "cbf":
-        return CBFSafetyFilter(robot, dt, **kwargs)
-    if name == "mpc":
-        from safenav.filters.mpc import MPCSafetyFilter
-
-        return MPCSafetyFilter(robot, dt, **kwargs)
-    raise UnknownName("filter", name, FILTER_NAMES)
+    cls = filter_class(name)
+    return None if cls is None else cls(robot, dt, **kwargs)

@@ -1,18 +1,19 @@
-"""What every safety filter shares: the result type, the status codes and the input checks.
+"""What every safety filter shares: the result, the statuses and their reasons, and the call template.
 
-A safety filter takes a nominal command ``u_nom = (v, omega)``, the latest
-:class:`~safenav.scan.LaserScan` and optionally the current velocity and the
-scan's age, and returns a frozen :class:`FilterResult`: the command to send and
-what the filter did. It never reads simulator truth, never returns NaN, and
-never raises inside the control loop for an input it can still act on: it
-brakes and says why in :attr:`FilterResult.status`. It raises only for
-structural mistakes (a ``u_nom`` of the wrong shape, something that is not a
-scan), as :class:`~safenav.errors.InvalidCommand` or
-:class:`~safenav.errors.InvalidScanType`.
+A safety filter takes a nominal command ``u_nom = (v, omega)``, the latest scan (or the
+latest scan of each of several lidars) and optionally the measured velocity, the odometry
+pose and the time, and returns a frozen :class:`FilterResult`: the command to send and what
+the filter did, with a :class:`Reason` whenever the command differs from ``u_nom``. It never
+reads simulator truth, never returns NaN, and never raises inside the control loop for an
+input it can still act on: it brakes and says why. It raises only for structural mistakes
+(a ``u_nom`` of the wrong shape, something that is not a scan, a scan that contradicts the
+robot's lidar).
 
-Subclasses implement :meth:`SafetyFilter._filter`; :meth:`SafetyFilter.filter`
-wraps it with the checks every filter needs (stale scan, non-finite nominal,
-blind scan, a non-finite answer).
+:meth:`SafetyFilter.filter` is a template every filter shares: input checks, the call
+period and scan ages, the odometry that carries remembered points, the perception
+(:mod:`safenav.filters.perception`), then the filter's own :meth:`SafetyFilter._filter`,
+then the bookkeeping. Subclasses implement ``_filter`` and may use the hooks
+:meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; none overrides ``filter``.
 """
 
 from __future__ import annotations
@@ -21,17 +22,36 @@ import abc
 import enum
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
+from safenav.filters.body import BodyModel
+from safenav.filters.perception import Frontier, PointMemory, beam_points, unknown_region
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
-__all__ = ["BRAKING_STATUSES", "FilterResult", "FilterStatus", "SafetyFilter", "check_period"]
+__all__ = [
+    "BRAKING_STATUSES",
+    "MAX_DT",
+    "FilterResult",
+    "FilterStatus",
+    "Reason",
+    "SafetyFilter",
+    "View",
+]
+
+#: Longest control period any filter accepts [s]; a larger ``dt`` is most likely in milliseconds.
+MAX_DT = 1.0
+#: A call this much later than ``dt`` (relative) counts as late.
+LATE_TOLERANCE = 0.05
+#: A scan stamped this far in the future [s] means the clocks disagree.
+FUTURE_TOLERANCE = 1e-3
 
 
 class FilterStatus(enum.Enum):
@@ -43,22 +63,65 @@ class FilterStatus(enum.Enum):
     """The robot is already inside the margin of some obstacle (a barrier is negative, e.g.
     after noise or a push); the command satisfies the barrier condition, which moves it back out."""
     SLACK = "slack"
-    """The constraints could not all hold (the robot is already too close, or cannot brake in
-    time); the command violates them as little as possible, moving away from the obstacles."""
+    """The obstacle constraints could not all hold (the robot is already too close, or cannot
+    brake in time); the command violates them as little as possible. Hard constraints (the
+    limits, the unknown region) still hold."""
+    LATE = "late"
+    """The call came later than ``dt`` after the previous one: the command was planned for the
+    measured period (:attr:`FilterResult.period`), and every constraint holds for it."""
+    BRAKING = "braking"
+    """No command keeps every hard constraint (e.g. moving too fast towards space that has just
+    become unknown): the base brakes at its acceleration limits."""
     FALLBACK = "fallback"
-    """The optimiser failed or its answer failed verification; the robot brakes (the MPC filter
-    follows its last verified plan, which ends stopped)."""
+    """The optimiser failed, ran out of time, or its answer failed verification; the robot
+    brakes (the MPC filter follows its last verified plan, which ends stopped)."""
     NO_DATA = "no_data"
     """The scan holds no informative beam; the robot brakes."""
     STALE = "stale"
-    """The scan is older than the timeout; the robot brakes."""
+    """A scan is older than the timeout, from the future, or of unknown age while the time is
+    given; the robot brakes."""
     BAD_INPUT = "bad_input"
     """The nominal command or the measured velocity is not finite; the robot brakes."""
 
 
-BRAKING_STATUSES = frozenset({FilterStatus.FALLBACK, FilterStatus.NO_DATA, FilterStatus.STALE,
-                              FilterStatus.BAD_INPUT})
+BRAKING_STATUSES = frozenset({FilterStatus.BRAKING, FilterStatus.FALLBACK, FilterStatus.NO_DATA,
+                              FilterStatus.STALE, FilterStatus.BAD_INPUT})
 """Statuses in which the filter ignores ``u_nom`` and brakes."""
+
+
+@dataclass(frozen=True)
+class Reason:
+    """Why the command differs from the nominal: the binding constraint and what is behind it.
+
+    Attributes:
+        family: what bound the command: a constraint family (``"barrier"``, ``"braking"``,
+            ``"sweep"``, ``"gap"``, ``"blind"``, ``"plan"``), ``"limits"`` (velocity limits),
+            ``"acceleration"`` (not reachable within one period), or the cause of a braking
+            status (``"stale"``, ``"late"``, ``"no_data"``, ``"bad_input"``, ``"solver"``,
+            ``"deadline"``, ``"unknown"``, ``"zone"``).
+        detail: one human-readable sentence.
+        point: the obstacle point behind it, base frame [m] (``None`` when there is none).
+    """
+
+    family: str
+    detail: str
+    point: tuple[float, float] | None = None
+
+    @property
+    def distance(self) -> float | None:
+        """Distance of :attr:`point` from the base origin [m]."""
+        return None if self.point is None else math.hypot(*self.point)
+
+    @property
+    def bearing(self) -> float | None:
+        """Direction of :attr:`point` in the base frame [rad] (0 ahead, positive to the left)."""
+        return None if self.point is None else math.atan2(self.point[1], self.point[0])
+
+    def __str__(self) -> str:
+        where = ""
+        if self.point is not None:
+            where = f" (obstacle at {self.distance:.2f} m, bearing {math.degrees(self.bearing):+.0f} deg)"
+        return f"{self.family}: {self.detail}{where}"
 
 
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
@@ -79,25 +142,33 @@ class FilterResult:
         u: the command to send, ``(v [m/s], omega [rad/s])``; always finite and within the limits.
         u_nom: the nominal command as given (may be non-finite when ``status`` is ``BAD_INPUT``).
         status: see :class:`FilterStatus`.
-        message: why the filter braked or relaxed a constraint; empty when ``status`` is ``OK``.
-        min_barrier: smallest barrier value at the current state [m] (``inf`` without constraints).
-        clearance: distance from the base origin to the nearest obstacle point minus the body
-            radius [m] (``inf`` when no point is seen); negative means inside the body disk.
+        message: why the filter changed the command, braked or relaxed a constraint (empty when
+            ``u`` is ``u_nom`` and nothing is wrong); ``str(reason)`` plus any detail.
+        reason: the binding constraint or the cause (``None`` only when ``u`` is ``u_nom`` and
+            the status is ``OK``).
+        min_barrier: smallest barrier value at the current state [m] (``inf`` without points).
+        clearance: distance from the body (its disks) to the nearest obstacle point [m]
+            (``inf`` when no point is seen); negative means inside the body.
         n_constraints: number of obstacle constraints the optimiser saw (after reduction).
         constraint_points: ``(n, 2)`` obstacle points behind those constraints, base frame [m].
         active: indices into ``constraint_points`` of the constraints that hold with equality.
-        slack: largest constraint relaxation [m] (0 unless ``status`` is ``SLACK``).
+        slack: largest relaxation of an obstacle constraint [m] (0 unless ``status`` is ``SLACK``).
         solver: name of the back-end that produced ``u`` (empty when no optimisation ran).
         solve_time: time spent in the optimiser [s].
         filter_time: time spent in the whole call [s].
+        period: the period this command was planned for [s]: ``dt``, or the measured time since
+            the previous call when that was longer (status ``LATE``).
         plan: the predicted trajectory, ``(N + 1, 5)`` rows of ``(x, y, yaw, v, omega)`` in the
             current base frame, for predictive filters; ``None`` otherwise.
+        warnings: conditions that do not change the command but void part of the guarantee
+            (e.g. the base does not follow the model), for logs.
     """
 
     u: np.ndarray
     u_nom: np.ndarray
     status: FilterStatus
     message: str = ""
+    reason: Reason | None = None
     min_barrier: float = math.inf
     clearance: float = math.inf
     n_constraints: int = 0
@@ -107,7 +178,9 @@ class FilterResult:
     solver: str = ""
     solve_time: float = 0.0
     filter_time: float = 0.0
+    period: float = math.nan
     plan: np.ndarray | None = None
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u", _frozen(self.u, (2,)))
@@ -116,6 +189,8 @@ class FilterResult:
         object.__setattr__(self, "active", tuple(map(int, self.active)))
         if self.plan is not None:
             object.__setattr__(self, "plan", _frozen(self.plan))
+        if self.reason is not None and not self.message:
+            object.__setattr__(self, "message", str(self.reason))
 
     @property
     def braked(self) -> bool:
@@ -127,117 +202,343 @@ class FilterResult:
         """True when ``u`` differs from ``u_nom``."""
         return not np.array_equal(self.u, self.u_nom)
 
+    intervened = modified
+
     @property
     def intervention(self) -> float:
         """Euclidean size of the change ``||u - u_nom||`` in ``(m/s, rad/s)`` (``inf`` if ``u_nom`` is not finite)."""
         difference = self.u - self.u_nom
         return float(np.hypot(*difference)) if np.all(np.isfinite(difference)) else math.inf
 
+    def explain(self) -> str:
+        """One line for a log: the status, the command and, when it differs from the nominal, why."""
+        line = (f"{self.status.value}: u=({self.u[0]:.3f}, {self.u[1]:.3f})"
+                f" from u_nom=({self.u_nom[0]:.3f}, {self.u_nom[1]:.3f})")
+        if self.message:
+            line += f"; {self.message}"
+        if math.isfinite(self.min_barrier):
+            line += f"; barrier {self.min_barrier:.3f} m"
+        for warning in self.warnings:
+            line += f"; warning: {warning}"
+        return line
 
-def check_period(name: str, value: Any) -> float:
-    """A positive, finite duration [s], or :class:`~safenav.errors.InvalidConfig` naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidConfig(f"{name} must be a duration in seconds, got {value!r}")
-    if not math.isfinite(value) or value <= 0:
-        raise InvalidConfig(f"{name} must be a finite duration > 0 [s], got {value!r}")
-    return float(value)
+
+class View(NamedTuple):
+    """What a filter sees at one call, in the current base frame."""
+
+    scans: tuple[LaserScan, ...]
+    """The current sources."""
+    points: np.ndarray
+    """``(N, 2)`` obstacle points [m]: the current scans' first, then the remembered ones."""
+    uncertainty: np.ndarray
+    """``(N,)`` position uncertainty of each point [m] (0 for current points)."""
+    n_current: int
+    """How many of :attr:`points` the current scans give."""
+    frontier: Frontier
+    """The part of the outline facing unknown space (see :func:`~safenav.filters.perception.unknown_region`)."""
+
+
+def as_scans(scan: Any) -> tuple[LaserScan, ...]:
+    """``scan`` (one :class:`~safenav.scan.LaserScan` or a sequence of them) as a non-empty tuple."""
+    if isinstance(scan, LaserScan):
+        return (scan,)
+    if isinstance(scan, Sequence) and not isinstance(scan, (str, bytes)) and len(scan) > 0 and all(
+            isinstance(item, LaserScan) for item in scan):
+        return tuple(scan)
+    raise InvalidScanType(
+        "scan must be a safenav LaserScan or a non-empty sequence of them (use LaserScan.from_msg for ROS "
+        f"messages), got {type(scan).__name__}")
 
 
 class SafetyFilter(abc.ABC):
-    """Base of the safety filters: input checks, the stale-scan watchdog, braking.
+    """Base of the safety filters: the call template, input checks, the clock and the memory.
 
     Args:
         robot: the robot whose body and limits the filter protects.
-        dt: control period [s]: how long each returned command is held.
+        dt: control period [s]: the longest time one returned command may be held.
+        body: the body model the filter keeps clear (default: the circumscribed disk).
         scan_timeout: largest scan age [s] the filter acts on; older scans make it brake.
         compensate_latency: move a scan of known age into the current base frame using the
             measured velocity before filtering.
+        max_gap: widest run of invalid beams bridged by its neighbours [rad].
+        side_tolerance: unknown space this close to exactly sideways does not block motion [rad].
+        memory_range: remembered points farther than this from the base are forgotten [m];
+            ``None``: the body's reach, the margin, the stopping distance from full speed and 1 m.
+        memory_capacity: largest number of remembered points (0 disables the memory).
+        time_constant: the base's first-order lag the filter allows for [s] (0: a base that
+            reaches each command within the period).
     """
 
     name = "filter"
+    margin: float = 0.0
 
-    def __init__(self, robot: RobotSpec, dt: float, *, scan_timeout: float = 0.5,
-                 compensate_latency: bool = True) -> None:
+    def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None, scan_timeout: float = 0.5,
+                 compensate_latency: bool = True, max_gap: float = math.radians(5.0),
+                 side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
+                 memory_capacity: int = 4000, time_constant: float = 0.0) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
-        if not isinstance(compensate_latency, bool):
-            raise InvalidConfig(f"compensate_latency must be True or False, got {compensate_latency!r}")
         self.robot = robot
-        self.dt = check_period("dt", dt)
-        self.scan_timeout = check_period("scan_timeout", scan_timeout)
-        self.compensate_latency = compensate_latency
+        self.dt = _checks.duration("dt", dt, high=MAX_DT)
+        self.body = body if body is not None else BodyModel.disk(robot)
+        self.scan_timeout = _checks.duration("scan_timeout", scan_timeout, high=1e9)
+        self.compensate_latency = _checks.boolean("compensate_latency", compensate_latency)
+        self.max_gap = _checks.number("max_gap", max_gap, low=0.0, high=2.0 * math.pi)
+        self.side_tolerance = _checks.number("side_tolerance", side_tolerance, low=0.0, high=0.5 * math.pi)
+        self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
+        capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
+        if memory_range is None:
+            speed = max(robot.v_max, -robot.v_min)
+            stop = speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
+            memory_range = self.body.reach + self.margin + stop + 1.0
+        self.memory = PointMemory(_checks.positive("memory_range", memory_range), capacity) if capacity else None
+        self._last_time: float | None = None
+        self._last_pose: Pose2D | None = None
+        self._last_velocity: np.ndarray | None = None
+        self._last_command = np.zeros(2)
+        self._called = False
+        self._recalled = (np.empty((0, 2)), np.empty(0))
 
-    def reset(self) -> None:  # noqa: B027 - an optional hook: stateless filters need nothing
-        """Forget warm-start state (call between episodes)."""
+    # ------------------------------------------------------------------ hooks
 
-    def __call__(self, u_nom: Any, scan: LaserScan, **kwargs: Any) -> FilterResult:
+    def _on_reset(self) -> None:  # noqa: B027 - an optional hook: stateless filters need nothing
+        """Forget the filter's own state (warm starts, stored plans)."""
+
+    def _on_brake(self) -> None:  # noqa: B027 - an optional hook
+        """Called when the filter brakes instead of filtering (stale, bad input, no data, hard rows)."""
+
+    def _braking_start(self, velocity: np.ndarray | None) -> np.ndarray | None:
+        """The velocity braking starts from: the measured one (``None``: stop at once, an instant base)."""
+        return velocity
+
+    @abc.abstractmethod
+    def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        """Filter a finite ``u_nom`` with fresh, informative scans.
+
+        Args:
+            u_nom: the nominal command.
+            view: the obstacle points and unknown region in the current base frame.
+            velocity: the measured velocity, or ``None``.
+            period: how long the command will be held [s] (``dt``, or longer when calls are late).
+        """
+
+    # ------------------------------------------------------------------ the template
+
+    def reset(self) -> None:
+        """Forget everything from earlier calls (call between episodes): memory, clock, warm starts."""
+        if self.memory is not None:
+            self.memory.clear()
+        self._last_time = None
+        self._last_pose = None
+        self._last_velocity = None
+        self._last_command = np.zeros(2)
+        self._called = False
+        self._on_reset()
+
+    def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
 
     def filter(
         self,
         u_nom: Any,
-        scan: LaserScan,
+        scan: LaserScan | Sequence[LaserScan],
         *,
         velocity: Any = None,
-        scan_age: float | None = None,
+        pose: Pose2D | Sequence[float] | None = None,
+        scan_age: float | Sequence[float] | None = None,
         now: float | None = None,
     ) -> FilterResult:
         """Filter one nominal command.
 
         Args:
             u_nom: nominal command ``(v [m/s], omega [rad/s])``.
-            scan: the latest scan, in the robot's current base frame.
-            velocity: current ``(v [m/s], omega [rad/s])``; when given, the returned command is
-                reachable within one period under the acceleration limits.
-            scan_age: how old the scan is [s]; past ``scan_timeout`` the filter brakes. With
-                ``velocity`` given (and ``compensate_latency``), the scan is first moved into the
+            scan: the latest scan, or the latest scan of each lidar; a scan built without a
+                mount gets the robot's lidar mount.
+            velocity: measured ``(v [m/s], omega [rad/s])`` (odometry); when given, the
+                returned command is reachable within one period under the acceleration limits,
+                and remembered points are carried by it.
+            pose: the odometry pose ``(x [m], y [m], yaw [rad])`` in any fixed frame; when given,
+                remembered points are carried by its change since the previous call (exact).
+            scan_age: how old each scan is [s]; past ``scan_timeout`` the filter brakes. With
+                ``velocity`` given (and ``compensate_latency``), a scan is first moved into the
                 current base frame by the motion since it was taken (:meth:`current_frame`).
-            now: the current time [s]; with ``scan.stamp`` it gives the age when ``scan_age`` is ``None``.
+            now: the current time [s]; with the scans' stamps it gives their ages, and between
+                calls the period (a call later than ``dt`` is planned for the measured period
+                and reported ``LATE``).
 
         Returns:
             The command to send and what the filter did.
 
         Raises:
             InvalidCommand: ``u_nom`` or ``velocity`` is not a pair of numbers.
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
+            InvalidScanType: ``scan`` is not a LaserScan (or a sequence of them).
         """
         start = time.perf_counter()
-        result = self._screened(u_nom, scan, velocity, scan_age, now)
+        nominal = as_command(u_nom, "u_nom")
+        scans = self._match(as_scans(scan))
+        current = None if velocity is None else as_command(velocity, "velocity")
+        period, clock_note = self._clock(now)
+        base_note = self._check_base(current, period if period is not None else self.dt)
+        self._carry(period if period is not None else self.dt, current, pose)
+        result = self._screened(nominal, scans, current, scan_age, now, period,
+                                "; ".join(note for note in (clock_note, base_note) if note))
+        self._last_command = np.array(result.u, dtype=float)
+        self._called = True
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
 
-    def _screened(self, u_nom: Any, scan: LaserScan, velocity: Any, scan_age: float | None,
-                  now: float | None) -> FilterResult:
+    def _match(self, scans: tuple[LaserScan, ...]) -> tuple[LaserScan, ...]:
+        """The scans in the robot's base frame (the robot's lidar mount for scans without one)."""
+        match = getattr(self.robot, "match_scan", None)
+        return scans if match is None else tuple(match(scan) for scan in scans)
+
+    def _clock(self, now: float | None) -> tuple[float | None, str]:
+        """The measured time since the previous call [s] (``None`` when unknown), and a note for the result."""
+        if now is None:
+            return None, ""
+        now = _checks.number("now", now)
+        last, self._last_time = self._last_time, now
+        if last is None:
+            return None, ""
+        elapsed = now - last
+        if elapsed < 0.0:
+            return None, f"the clock went back by {-elapsed:.3f} s; the period is unknown for this call"
+        return elapsed, ""
+
+    def _check_base(self, velocity: np.ndarray | None, elapsed: float) -> str:
+        """Whether the base followed the last command as the filter assumes; a warning when it did not.
+
+        A base covered by the guarantee keeps its velocity between the previous measurement and
+        the command it was sent, and ends the period at the command (``time_constant = 0``) or
+        at most ``exp(-elapsed / time_constant)`` of the way back (a first-order lag).
+        """
+        previous = self._last_velocity
+        if velocity is None or previous is None or not self._called or not np.all(np.isfinite(velocity)):
+            return ""
+        command = self._last_command
+        tolerance = np.array([0.25 * self.robot.a_max * self.dt + 0.01, 0.25 * self.robot.alpha_max * self.dt + 0.02])
+        left = np.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
+        allowed = left * np.abs(previous - command) + tolerance
+        between = (velocity >= np.minimum(previous, command) - tolerance) & (
+            velocity <= np.maximum(previous, command) + tolerance)
+        if np.all(np.abs(velocity - command) <= allowed) and np.all(between):
+            return ""
+        return (f"the base does not follow its commands as assumed: measured {np.round(velocity, 3).tolist()} "
+                f"after {elapsed:.3f} s from {np.round(previous, 3).tolist()} towards {np.round(command, 3).tolist()} "
+                f"(time_constant={self.time_constant}); the guarantee needs time_constant set to the base's lag")
+
+    def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
+        """Move the remembered points by the motion since the previous call."""
+        odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
+        last_pose, self._last_pose = self._last_pose, odometry
+        last_velocity = self._last_velocity
+        self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
+        if self.memory is None or not self._called:
+            return
+        if odometry is not None and last_pose is not None:
+            self.memory.carry(last_pose.inverse().compose(odometry))
+            return
+        if self._last_velocity is not None and last_velocity is not None:
+            # The velocity moved from the last measurement to this one (monotonically for every base
+            # model covered): the trapezoid is exact for a linear ramp, and off by at most half the change.
+            mean = 0.5 * (last_velocity + self._last_velocity)
+            change = np.abs(self._last_velocity - last_velocity)
+            error = (0.5 * elapsed * change[0], 0.5 * elapsed * change[1])
+        else:
+            # No odometry: the base is assumed to have executed the last command (an instant base).
+            mean, error = self._last_command, (0.0, 0.0)
+        self.memory.carry(unicycle_step(Pose2D(), float(mean[0]), float(mean[1]), elapsed), error)
+
+    def _screened(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], current: np.ndarray | None,
+                  scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:
         """The checks every filter needs around :meth:`_filter` (see :meth:`filter`)."""
-        nominal = as_command(u_nom, "u_nom")
-        if not isinstance(scan, LaserScan):
-            raise InvalidScanType(
-                f"scan must be a safenav LaserScan (use LaserScan.from_msg for ROS messages), got {type(scan).__name__}"
-            )
-        current = None
-        if velocity is not None:
-            current = as_command(velocity, "velocity")
-            if not np.all(np.isfinite(current)):
-                return self._brake(nominal, None, FilterStatus.BAD_INPUT,
-                                   f"velocity is not finite: {current.tolist()}")
-        if scan_age is None and now is not None and scan.stamp is not None:
-            scan_age = float(now) - scan.stamp
-        if scan_age is not None and not scan_age <= self.scan_timeout:  # also catches NaN
-            return self._brake(nominal, current, FilterStatus.STALE,
-                               f"scan is {scan_age:.3f} s old; timeout {self.scan_timeout:.3f} s")
+        warnings = (clock_note,) if clock_note else ()
+        if current is not None and not np.all(np.isfinite(current)):
+            return self._brake(nominal, None, FilterStatus.BAD_INPUT, "bad_input",
+                               f"velocity is not finite: {current.tolist()}", warnings=warnings)
+        ages, stale = self._ages(scans, scan_age, now)
+        if stale:
+            return self._brake(nominal, current, FilterStatus.STALE, "stale", stale, warnings=warnings)
         if not (math.isfinite(nominal[0]) and math.isfinite(nominal[1])):
-            return self._brake(nominal, current, FilterStatus.BAD_INPUT,
-                               f"u_nom is not finite: {nominal.tolist()}")
-        if scan.n_informative == 0:
-            return self._brake(nominal, current, FilterStatus.NO_DATA,
-                               f"none of the {scan.n_beams} beams is informative (all NaN or out of range)")
-        if self.compensate_latency and current is not None and scan_age is not None and scan_age > 0.0:
-            scan = self.current_frame(scan, current, scan_age)
-        result = self._filter(nominal, scan, current)
+            return self._brake(nominal, current, FilterStatus.BAD_INPUT, "bad_input",
+                               f"u_nom is not finite: {nominal.tolist()}", warnings=warnings)
+        if all(scan.n_informative == 0 for scan in scans):
+            beams = sum(scan.n_beams for scan in scans)
+            return self._brake(nominal, current, FilterStatus.NO_DATA, "no_data",
+                               f"none of the {beams} beams is informative (all NaN or out of range)",
+                               warnings=warnings)
+        if self.compensate_latency and current is not None:
+            scans = tuple(self.current_frame(scan, current, age) if age is not None and age > 0.0 else scan
+                          for scan, age in zip(scans, ages, strict=True))
+        held = self.dt
+        late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
+        if late:
+            held = period
+        view = self._observe(scans)
+        result = self._filter(nominal, view, current, held)
+        self._remember(view)
         if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
-            return self._brake(nominal, current, FilterStatus.FALLBACK,
-                               f"filter produced a non-finite command {result.u.tolist()}")
-        return result
+            return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
+                               f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
+        extras: dict[str, Any] = dict(period=held)
+        if warnings or result.warnings:
+            extras["warnings"] = result.warnings + warnings
+        if late and result.status is FilterStatus.OK:
+            late_reason = Reason("late", f"called {period:.3f} s after the previous call, longer than dt = "
+                                         f"{self.dt:.3f} s; planned for {period:.3f} s")
+            extras.update(status=FilterStatus.LATE, reason=late_reason if result.reason is None else result.reason,
+                          message=str(late_reason) + (f"; {result.message}" if result.message else ""))
+        return _replace(result, **extras)
+
+    def _ages(self, scans: tuple[LaserScan, ...], scan_age: Any, now: float | None
+              ) -> tuple[list[float | None], str]:
+        """Each scan's age [s] and, when one cannot be trusted, why (empty when all are fresh)."""
+        if scan_age is not None:
+            given = [scan_age] * len(scans) if not isinstance(scan_age, Sequence) else list(scan_age)
+            if len(given) != len(scans):
+                raise InvalidScanType(f"scan_age must give one age per scan ({len(scans)}), got {scan_age!r}")
+            for age in given:
+                if not _checks.is_real(age):
+                    raise InvalidScanType(f"scan_age must be a number of seconds (or one per scan), got {age!r}")
+            ages: list[float | None] = [float(age) for age in given]
+        elif now is not None:
+            ages = []
+            for scan in scans:
+                if scan.stamp is None:
+                    return [], (f"scan from {scan.frame_id!r} has no stamp, so its age cannot be checked against "
+                                f"now={now!r}; pass scan_age= or stamped scans")
+                ages.append(float(now) - scan.stamp)
+        else:
+            return [None] * len(scans), ""
+        for scan, age in zip(scans, ages, strict=True):
+            if age is None:
+                continue
+            if math.isnan(age):
+                return ages, f"scan from {scan.frame_id!r} has an unknown age (NaN)"
+            if age < -FUTURE_TOLERANCE:
+                return ages, (f"scan from {scan.frame_id!r} is stamped {-age:.3f} s in the future (clocks out of "
+                              f"sync, or a stamp in the wrong unit)")
+            if age > self.scan_timeout:
+                return ages, f"scan from {scan.frame_id!r} is {age:.3f} s old; timeout {self.scan_timeout:.3f} s"
+        return ages, ""
+
+    def _observe(self, scans: tuple[LaserScan, ...]) -> View:
+        """Obstacle points (current and remembered) and the unknown region of this call."""
+        current = beam_points(scans, self.robot.radius)
+        frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
+        if self.memory is None:
+            return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
+        noise = max(scan_noise(self.robot), 0.0)
+        recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
+        self._recalled = (recalled, uncertainty)
+        points = np.vstack((current, recalled)) if recalled.shape[0] else current
+        return View(scans, points, np.concatenate((np.zeros(current.shape[0]), uncertainty)), current.shape[0],
+                    frontier)
+
+    def _remember(self, view: View) -> None:
+        if self.memory is not None:
+            recalled, uncertainty = self._recalled
+            self.memory.store(view.points[: view.n_current], recalled, uncertainty)
 
     @staticmethod
     def current_frame(scan: LaserScan, velocity: np.ndarray, scan_age: float) -> LaserScan:
@@ -251,12 +552,25 @@ class SafetyFilter(abc.ABC):
         moved = unicycle_step(Pose2D(), float(velocity[0]), float(velocity[1]), scan_age)
         return scan.replace(mount=moved.inverse().compose(scan.mount))
 
-    def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, message: str,
-                **details: Any) -> FilterResult:
+    def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, family: str,
+               detail: str, **details: Any) -> FilterResult:
         """A result that brakes as hard as the acceleration limits allow (from ``velocity`` when known)."""
-        u = self.robot.brake(velocity, self.dt if velocity is not None else None)
-        return FilterResult(u=u, u_nom=nominal, status=status, message=message, **details)
+        self._on_brake()
+        start = self._braking_start(velocity)
+        u = self.robot.brake(start, self.dt if start is not None else None)
+        details.setdefault("period", self.dt)
+        return FilterResult(u=u, u_nom=nominal, status=status, reason=Reason(family, detail), **details)
 
-    @abc.abstractmethod
-    def _filter(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray | None) -> FilterResult:
-        """Filter a finite ``u_nom`` with an informative, fresh ``scan``."""
+
+def scan_noise(robot: RobotSpec) -> float:
+    """Largest range noise standard deviation of the robot's lidars [m]."""
+    return max(lidar.noise_std for lidar in getattr(robot, "lidars", (robot.lidar,)))
+
+
+def _replace(result: FilterResult, **changes: Any) -> FilterResult:
+    """``result`` with some fields changed (a frozen dataclass copy)."""
+    if not changes:
+        return result
+    values = {name: getattr(result, name) for name in result.__dataclass_fields__}
+    values.update(changes)
+    return FilterResult(**values)

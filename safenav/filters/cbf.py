@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -9,17 +10,19 @@ from typing import Any, NamedTuple
 import numpy as np
 import qpsolvers
 
-from safenav.errors import InvalidConfig
-from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
-from safenav.filters.qp import QPBackend, QPData, make_backend
-from safenav.filters.reduction import (
-    BlockedMotion,
-    blocked_motion,
-    body_clearance,
+from safenav import _checks
+from safenav.filters import rows as families
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
+from safenav.filters.body import BodyModel
+from safenav.filters.defaults import (
+    default_gamma,
     default_margin,
-    nearest_per_bin,
-    obstacle_beams,
+    default_weights,
+    lag_fraction,
+    reaction_time,
 )
+from safenav.filters.perception import nearest_per_bin
+from safenav.filters.qp import QPBackend, QPData, make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -32,45 +35,45 @@ VERIFY_TOLERANCE = 1e-6
 AUX_REGULARISATION = 1e-9
 #: Linear cost on the slack variable [s/m] (with slack_weight: an exact penalty in practice).
 SLACK_LINEAR_WEIGHT = 1e3
-#: Default look-ahead distance [m] (measured: steering authority vs 2 l of conservatism head-on).
+#: Look-ahead distance [m] of the single-disk model (steering authority vs 2 l of conservatism head-on).
 DEFAULT_LOOKAHEAD = 0.1
-#: Default cost of a yaw-rate change relative to a speed change, both as fractions of their
-#: limits: 0.2 makes steering five times cheaper than braking, which measured more progress
-#: (wall follower twice as far, goals reached) at the same clearance.
-STEERING_PREFERENCE = 0.2
 MAX_GENERATION_ROUNDS = 8
 """Rounds of constraint generation before the QP takes every candidate row."""
 #: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
 #: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
-
-
-def _check_fraction(name: str, value: float, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
-        raise InvalidConfig(f"CBFConfig.{name} must be a number in [{low}, {high}], got {value!r}")
-    return float(value)
+BODIES = ("disk", "cover")
 
 
 @dataclass(frozen=True)
 class CBFConfig:
-    """Settings of :class:`CBFSafetyFilter`; ``None`` means "derive from the robot" (see there).
+    """Settings of :class:`CBFSafetyFilter`; ``None`` means "derive from the robot" (:meth:`resolve`).
 
     Attributes:
-        gamma: decay of the discrete-time barrier condition, in (0, 1].
-        margin: clearance kept between the body disk and every obstacle point [m].
-        lookahead: distance of the look-ahead point ahead of the base origin [m]; 0 gives
-            the centre-distance barrier, which constrains ``v`` only.
-        solver: QP back-end name (``"daqp"``, ``"quadprog"``, ``"osqp"``, any qpsolvers solver).
-        weights: cost weights on the ``(v, omega)`` deviations [s^2/m^2, s^2/rad^2];
-            default ``(1 / v_max^2, 0.2 / omega_max^2)``.
+        gamma: decay of the discrete-time barrier condition, in (0, 1]; default ``min(1, a_max dt / v_max)``.
         far_gamma: largest fraction of its own barrier any point may lose per period, in
             (0, 1]; default 1 (only the minimum condition). ``far_gamma = gamma`` gives the
             classic point-wise condition ``h(o, x+) >= (1 - gamma) h(o, x)``.
+        margin: clearance kept between the body and every obstacle point [m]; default
+            ``0.02 m + 2 noise_std + 1 m x angle_increment``.
+        lookahead: distance of the control points ahead of the disk centres [m]; default
+            0.1 m for the single disk (whose centre turning does not move), 0 for a cover.
+        body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the footprint).
+        n_disks: disks of the cover (default 3).
+        solver: QP back-end name (``"daqp"``, ``"quadprog"``, ``"osqp"``, any qpsolvers solver;
+            case-insensitive).
+        weights: cost weights on the ``(v, omega)`` deviations [s^2/m^2, s^2/rad^2];
+            default ``(1 / v_max^2, 0.2 / omega_max^2)``.
         max_gap: widest run of invalid beams bridged by its neighbours [rad]; wider runs are unknown.
-        side_tolerance: unknown directions this close to exactly sideways do not block motion [rad].
+        side_tolerance: unknown space this close to exactly sideways does not block motion [rad].
         n_bins: angular bins of the initial working set (nearest point per bin).
-        slack_weight: quadratic cost on the relaxation of the rows (in m/s) when no command
-            satisfies them all; with the linear cost of 1e3 it acts as an exact penalty [s^2/m^2].
+        slack_weight: quadratic cost on the relaxation of the obstacle rows (in m/s) when no
+            command satisfies them all; with the linear cost of 1e3 it acts as an exact penalty [s^2/m^2].
+        time_constant: first-order lag of the base's velocity loop the filter allows for [s]
+            (0: the base reaches each command within the period, at once, linearly or at its
+            acceleration limit). Needs ``velocity`` at each call.
+        memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
+        memory_capacity: largest number of remembered points.
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first
             (see :meth:`SafetyFilter.current_frame`).
@@ -80,389 +83,373 @@ class CBFConfig:
     far_gamma: float | None = None
     margin: float | None = None
     lookahead: float | None = None
+    body: str = "disk"
+    n_disks: int = 3
     solver: str = "daqp"
     weights: tuple[float, float] | None = None
     max_gap: float = math.radians(5.0)
     side_tolerance: float = math.radians(5.0)
     n_bins: int = 36
     slack_weight: float = 1e4
+    time_constant: float = 0.0
+    memory_range: float | None = None
+    memory_capacity: int = 4000
     scan_timeout: float = 0.5
     compensate_latency: bool = True
 
     def __post_init__(self) -> None:
+        name = "CBFConfig."
         if self.gamma is not None:
-            _check_fraction("gamma", self.gamma, 1e-6, 1.0)
+            _checks.number(name + "gamma", self.gamma, low=0.0, high=1.0, low_open=True)
         if self.far_gamma is not None:
-            _check_fraction("far_gamma", self.far_gamma, 1e-6, 1.0)
+            _checks.number(name + "far_gamma", self.far_gamma, low=0.0, high=1.0, low_open=True)
         if self.margin is not None:
-            _check_fraction("margin", self.margin, 0.0, 10.0)
+            _checks.number(name + "margin", self.margin, low=0.0, high=10.0)
         if self.lookahead is not None:
-            _check_fraction("lookahead", self.lookahead, 0.0, 10.0)
+            _checks.number(name + "lookahead", self.lookahead, low=0.0, high=10.0)
+        _checks.choice("CBF body model", self.body, BODIES)
+        _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
         if not isinstance(self.solver, str):
-            raise InvalidConfig(f"CBFConfig.solver must be a solver name, got {self.solver!r}")
-        if self.weights is not None and (len(self.weights) != 2 or not all(
-                isinstance(w, (int, float)) and math.isfinite(w) and w > 0 for w in self.weights)):
-            raise InvalidConfig(f"CBFConfig.weights must be two positive numbers (v, omega), got {self.weights!r}")
-        _check_fraction("max_gap", self.max_gap, 0.0, 2 * math.pi)
-        _check_fraction("side_tolerance", self.side_tolerance, 0.0, 0.5 * math.pi)
-        if isinstance(self.n_bins, bool) or not isinstance(self.n_bins, int) or self.n_bins < 1:
-            raise InvalidConfig(f"CBFConfig.n_bins must be an integer >= 1, got {self.n_bins!r}")
-        _check_fraction("slack_weight", self.slack_weight, 1.0, 1e12)
-        _check_fraction("scan_timeout", self.scan_timeout, 1e-6, 1e9)
+            raise _checks.InvalidConfig(f"{name}solver must be a solver name, got {self.solver!r}")
+        if self.weights is not None:
+            _checks.pair(name + "weights", self.weights, low=0.0, low_open=True)
+        _checks.number(name + "max_gap", self.max_gap, low=0.0, high=2 * math.pi)
+        _checks.number(name + "side_tolerance", self.side_tolerance, low=0.0, high=0.5 * math.pi)
+        _checks.integer(name + "n_bins", self.n_bins, low=1)
+        _checks.number(name + "slack_weight", self.slack_weight, low=1.0, high=1e12)
+        _checks.number(name + "time_constant", self.time_constant, low=0.0, high=1.0)
+        if self.memory_range is not None:
+            _checks.positive(name + "memory_range", self.memory_range)
+        _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
+        _checks.boolean(name + "compensate_latency", self.compensate_latency)
+
+    def resolve(self, robot: RobotSpec, dt: float) -> CBFConfig:
+        """This config with every robot-derived default filled in (see :mod:`safenav.filters.defaults`)."""
+        gamma = self.gamma if self.gamma is not None else default_gamma(robot, dt)
+        return dataclasses.replace(
+            self,
+            gamma=gamma,
+            far_gamma=max(gamma, self.far_gamma if self.far_gamma is not None else 1.0),
+            margin=self.margin if self.margin is not None else default_margin(robot),
+            lookahead=self.lookahead if self.lookahead is not None else (
+                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),
+            weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
+            solver=self.solver.lower(),
+        )
 
 
-class _Constraints(NamedTuple):
-    """The barrier rows ``G z <= rhs`` over ``z = (v, omega, t_v, t_omega)`` and their provenance."""
+class _Problem(NamedTuple):
+    """Everything one call constrains: the rows, their points, the box on ``z``, and the barrier values."""
 
-    G: np.ndarray            # (k, 4)
-    rhs: np.ndarray          # (k,)
-    point: np.ndarray        # (k,) index of the obstacle point behind each row; -1 for field-of-view rows
-    points: np.ndarray       # (N, 2) obstacle points, base frame [m]
-    barrier: np.ndarray      # (N,) barrier value of each point [m]
-    lower: np.ndarray        # (4,) bounds on z
-    upper: np.ndarray        # (4,)
-    blocked: BlockedMotion
+    rows: families.Rows
+    points: np.ndarray          # (N, 2) obstacle points the pairs refer to
+    barrier: np.ndarray         # (N,) smallest barrier of each point over the disks [m]
+    min_barrier: float
+    lower: np.ndarray           # (4,) bounds on z
+    upper: np.ndarray
     velocity: np.ndarray | None
-
-
-#: |v| <= t_v and |omega| <= t_omega as rows over z = (v, omega, t_v, t_omega).
-_ABS_ROWS = np.array([[1.0, 0.0, -1.0, 0.0], [-1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
-_ABS_RHS = np.zeros(4)
+    limits: tuple[np.ndarray, np.ndarray]   # the command's box (velocity limits and reachability)
 
 
 class CBFSafetyFilter(SafetyFilter):
-    """Minimal change of ``(v, omega)`` that keeps the body disk clear of every lidar point.
+    """Minimal change of ``(v, omega)`` that keeps the body clear of every lidar point.
 
-    **Barrier.** For each obstacle point ``o`` of the scan (base frame, taken as static
-    over one period) and the look-ahead point ``p = c + l (cos yaw, sin yaw)``::
+    **Barrier.** The body is one disk (radius ``R``, the circumscribed disk of the footprint)
+    or a cover of the footprint by ``n_disks`` disks (``body="cover"``). For each disk ``j``,
+    control point ``p_j`` (its centre plus the look-ahead ``l`` along the heading) and
+    obstacle point ``o`` of the scans or of the memory (base frame, taken as static over one
+    period)::
 
-        h(o) = ||p - o|| - (R + l + margin),        H = min over o of h(o)
+        h_j(o) = ||p_j - o|| - (rho_j + l + margin + e_o),        H = min over j, o
 
-    ``H >= 0`` implies ``||c - o|| >= R + margin`` for every point: the body disk of radius
-    ``R`` keeps ``margin`` of clearance (the look-ahead barrier is conservative by up to
-    ``2 l`` when facing an obstacle). Unlike the centre distance, ``p`` moves with both
-    ``v`` and ``omega``, so the filter can steer as well as brake; ``lookahead=0`` gives
-    the centre-distance barrier, which constrains ``v`` only.
+    ``H >= 0`` implies every disk, hence the footprint they cover, keeps ``margin`` from every
+    point (``e_o`` is a remembered point's odometry uncertainty). A control point off the
+    base origin moves with both ``v`` and ``omega``, so the filter can steer as well as brake;
+    the look-ahead of the single disk costs up to ``2 l`` of extra distance head-on.
 
-    **Discrete-time condition.** With the command held for one period ``dt`` the filter
-    enforces ``H(x+) >= (1 - gamma) H(x)``, that is ``h(o, x+) >= (1 - gamma) H(x)`` for
-    every point: one row per point. This is the condition on the safe set itself
-    (the minimum), not on each point's own barrier, so a wall alongside does not slow
-    the robot just because its points ahead come closer at a shallow angle. Each row is
-    the linearisation of ``h`` (a lower bound, since ``||.||`` is convex) at the exact
-    displacement, whose error against the straight-line model ``dt (v, l omega)`` is
-    bounded by ``kappa dt (|v| + l |omega|)`` with ``kappa = omega_max dt / 2`` (the arc).
-    That bound enters the row through auxiliary variables ``t_v >= |v|``,
-    ``t_omega >= |omega|``, so the condition holds for the true unicycle motion, with no
-    accumulation between steps.
+    **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
+    ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
+    the period bounded exactly through auxiliaries ``t_v >= |v|``, ``t_omega >= |omega|``);
+    with ``velocity`` given, ``braking`` (approach speed caps: one period of reaction plus the
+    lag, then braking at ``a_max``, must stop within each barrier) and ``sweep`` (speed along
+    the heading capped for points the heading can still swing towards while braking), each
+    written for every mean velocity a base between the current velocity and the command can
+    have (:func:`~safenav.filters.rows.ramp_corners`); ``gap`` (no part of the outline moves
+    towards a run of invalid beams) and ``blind`` (no translation towards a side no lidar
+    sees); and the command box (velocity limits, reachable within one period). Only the
+    obstacle families (``barrier``, ``braking``, ``sweep``) are *soft*: when no command
+    satisfies every row, a slack relaxes them alone (status ``SLACK``); the unknown-region
+    rows and the box are hard, and when they cannot all hold the base brakes at its limits
+    (status ``BRAKING``).
 
-    **Acceleration limits** (when the current ``velocity`` is given). The command must be
-    reachable within one period; every row is imposed both on the command and on the mean
-    of current and commanded velocity, which bounds the displacement of a base that ramps
-    to the command at its acceleration limit; and the approach speed towards each point is
-    capped so that the base can still stop before it, ``s dt + s^2 / (2 a_max) <= h(o)``
-    (one period of reaction, then braking). Without that cap the relief of the minimum
-    condition would let a turn bring a far point into the path faster than the base can
-    brake. When the base is already too fast to stop, the rows cannot all hold: see below.
+    **Unknown region and memory** (:mod:`safenav.filters.perception`). Unknown space is
+    never free. It is measured from the body's outline and each lidar's mount, not from the
+    laser origin. Points that leave every field of view (beside and behind the m2wr's
+    180-degree lidar, which sits 0.15 m ahead of the base origin) are carried in the base
+    frame by odometry (``pose``, else the measured ``velocity``, else the commands returned)
+    and stay obstacles while within ``memory_range`` and not contradicted by a current beam.
 
-    **Defaults derived from the robot.** ``gamma = min(1, a_max dt / v_max)``: a head-on
-    approach at full speed then needs at most the acceleration limit to brake.
-    ``margin = 0.02 m + 2 noise_std + 1 m x angle_increment``: a safety distance, the
-    lidar's range noise, and the widest object that can hide between two beams 1 m away.
-    ``lookahead = 0.1 m``. Cost weights ``(1 / v_max^2, 0.2 / omega_max^2)``: steering is
-    preferred to braking, which keeps the robot moving round obstacles (BENCHMARKS.md).
+    **Defaults derived from the robot** (:meth:`CBFConfig.resolve`). ``gamma = min(1, a_max
+    dt / v_max)``: a head-on exponential approach at full speed brakes at ``a_max`` at most.
+    ``margin = 0.02 m + 2 noise_std + 1 m x angle_increment``. Weights ``(1 / v_max^2,
+    0.2 / omega_max^2)``: steering is preferred to braking.
 
-    **Field of view.** Unknown directions (outside the field of view, or runs of invalid
-    beams wider than ``max_gap``) are never free: an unknown direction within
-    ``90 deg - side_tolerance`` of the heading forbids ``v > 0``; of the rear, ``v < 0``.
+    **Guarantee.** Stated in full, with its assumptions, in ``docs/safety.md``: if the world is
+    static, every obstacle wider than the beam gap 1 m away is seen within ``2 noise_std``
+    by some lidar before the body comes within ``margin`` of it (the part of the body's blind
+    region it sweeps was clear when the filter started, or was seen before it got there), the
+    base holds each command for at most the period (``dt``, or the measured period when calls
+    are late and ``now`` is given) and its velocity over the period stays between the current
+    velocity and the command with a mean at most ``lag_fraction`` of the way back (any base
+    that reaches each command within the period; a first-order lag up to ``time_constant``),
+    and ``H >= 0`` at the start, then with status ``OK``/``LATE`` the new ``H`` is at least
+    ``(1 - gamma) H``: the body keeps ``margin`` from every point seen or remembered.
+    Returned commands always respect the velocity limits, the acceleration limits (with
+    ``velocity``) and every hard row.
 
-    **Guarantee.** If the world is static, every obstacle wider than the beam gap at
-    1 m is seen by a beam whose reading is within ``2 noise_std`` of the truth, the
-    base executes each command for ``dt`` (instantly, or ramping at no more than its
-    acceleration limits when ``velocity`` is given), and the body starts with ``H >= 0``,
-    then ``H`` stays ``>= 0``, so the body disk keeps ``margin`` of clearance from every
-    point seen. Returned commands always respect the
-    velocity (and acceleration) limits. The body region the lidar cannot see (e.g.
-    behind a front-mounted 180-degree lidar) is covered only by forbidding motion
-    towards it.
+    **Minimal intervention.** When ``u_nom`` satisfies every row and the box it is returned
+    unchanged (bit for bit) and no QP is solved. Otherwise the QP minimises the weighted
+    distance to ``u_nom`` clipped to the velocity limits.
 
-    **Readings closer than range_min** (``-inf``) put their point where the beam leaves
-    the body disk: the object may be touching, so the robot counts as inside its margin and
-    backs away until the lidar can measure the gap again. (A lidar whose ``range_min``
-    exceeds ``R + margin`` from the body cannot see the margin itself; with this rule the
-    robot keeps out of that blind ring instead.)
-
-    **When it cannot hold.** If no command satisfies every row (the robot is already
-    inside the margin, or moving too fast to stop before an obstacle or an unseen
-    direction), a slack variable relaxes the barrier rows with a heavy penalty: the
-    command violates them as little as possible, which moves the robot away, and the
-    status is ``SLACK``. A robot already inside the margin whose command does satisfy the
-    condition (it moves back out) gets status ``RECOVERING``. Every QP answer is checked
-    against every row of every point in reach (not only the reduced set) to ``1e-6`` m/s
-    (``5e-8`` m per 50 ms period); a failed solve or check brakes with status ``FALLBACK``.
-
-    **Minimal intervention.** When ``u_nom`` satisfies every row and limit, it is
-    returned unchanged (bit for bit) and no QP is solved. Otherwise the QP minimises the
-    weighted distance to ``u_nom`` clipped to the velocity limits.
-
-    **Point reduction.** Rows that cannot be active for any reachable command are
-    dropped (exact). The QP starts from the nearest point per angular bin around ``p``
-    and adds any violated row until none is (constraint generation), so the answer is
-    that of the QP with every point.
+    **Reduction (exact).** A point is skipped only when no row of any family built from it
+    can bind for any command in the box: its barrier exceeds what the barrier rows
+    (``(1 - gamma) H + dt S``) and the braking rows (``S T + S^2 / (2 a_max)``) can reach at
+    the largest approach speed ``S`` the box allows. Rows no command in the box can violate
+    are dropped; the QP starts from the nearest point per angular bin and adds any violated
+    row until none is (constraint generation), so the answer is that of the QP with every
+    row of every point. Every answer is verified against every row.
 
     Args:
         robot: the robot to protect.
-        dt: control period [s].
+        dt: control period [s]: the longest time a command is held (at most 1 s).
         config: settings; keyword arguments override its fields.
     """
 
     name = "cbf"
 
     def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: CBFConfig | None = None, **overrides: Any):
-        config = CBFConfig(**{**(config.__dict__ if config else {}), **overrides})
-        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=config.compensate_latency)
-        self.config = config
-        self.gamma = config.gamma if config.gamma is not None else min(1.0, robot.a_max * self.dt / robot.v_max)
-        self.far_gamma = max(self.gamma, config.far_gamma if config.far_gamma is not None else 1.0)
-        self.margin = config.margin if config.margin is not None else default_margin(robot)
-        self.lookahead = config.lookahead if config.lookahead is not None else DEFAULT_LOOKAHEAD
-        self.kappa = 0.5 * robot.omega_max * self.dt
-        weights = config.weights or (1.0 / robot.v_max**2, STEERING_PREFERENCE / robot.omega_max**2)
-        self._P = np.diag([weights[0], weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
-        self.backend: QPBackend = make_backend(config.solver)
+        base_config = CBFConfig(**{**(config.__dict__ if config else {}), **overrides})
+        dt = _checks.duration("dt", dt, high=1.0)
+        self.config = base_config.resolve(robot, dt)
+        cfg = self.config
+        self.margin = float(cfg.margin)
+        body = BodyModel.cover(robot, cfg.n_disks) if cfg.body == "cover" else BodyModel.disk(robot)
+        super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
+                         compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
+                         side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
+                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant)
+        self.gamma = float(cfg.gamma)
+        self.far_gamma = float(cfg.far_gamma)
+        self.lookahead = float(cfg.lookahead)
+        self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
+        self.backend: QPBackend = make_backend(cfg.solver)
 
     def __repr__(self) -> str:
-        return (f"CBFSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, gamma={self.gamma:.4f}, "
-                f"margin={self.margin:.4f}, lookahead={self.lookahead:.4f}, solver={self.backend.name!r})")
+        return (f"CBFSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, body={self.body.name!r}, "
+                f"gamma={self.gamma:.4f}, margin={self.margin:.4f}, lookahead={self.lookahead:.4f}, "
+                f"solver={self.backend.name!r})")
+
+    @property
+    def kappa(self) -> float:
+        """Arc coefficient ``omega_max dt / 2`` of the nominal period."""
+        return 0.5 * self.robot.omega_max * self.dt
 
     # ------------------------------------------------------------------ constraints
 
-    def _relevant_points(self, scan: LaserScan, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """Obstacle points [m] whose row some reachable command could violate, plus the nearest ones.
-
-        A point's row allows its barrier to drop to ``(1 - gamma) H``, ``H`` the smallest
-        barrier; in one period the barrier of any point drops by at most
-        ``D = dt (V + l Omega)(1 + kappa)`` at the largest reachable speeds. With ``o`` the
-        distance from the laser to the look-ahead point, a beam of range ``rho`` has a
-        barrier of at least ``rho - o - r`` and ``H <= rho_min + o - r``, so beams longer than
-        ``(1 - gamma)(rho_min + o - r) + D + o + r`` can never be violated and are skipped
-        before any trigonometry. The beams nearest the base origin and the look-ahead point
-        are always kept, so the reported clearance and minimum barrier are exact.
-        """
-        index, ranges = obstacle_beams(scan, self.robot.radius)
-        if index.size == 0:
-            return np.empty((0, 2))
-        ell = self.lookahead
-        mount = scan.mount
-        offset = max(math.hypot(mount.x, mount.y), math.hypot(mount.x - ell, mount.y))
-        speed = max(abs(lower[0]), abs(upper[0])) + ell * max(abs(lower[1]), abs(upper[1]))
-        drop = self.dt * speed * (1.0 + self.kappa)
-        radius = self.robot.radius + ell + self.margin
-        nearest = float(ranges.min())
-        cut = max((1.0 - self.gamma) * (nearest + offset - radius) + drop + offset + radius, nearest + 2.0 * offset)
-        keep = ranges <= cut
-        return scan.beam_points(index[keep], ranges[keep])
-
-    def _constraints(self, scan: LaserScan, velocity: np.ndarray | None) -> _Constraints:
-        robot, dt, ell = self.robot, self.dt, self.lookahead
-        lower, upper = robot.velocity_bounds(velocity, dt if velocity is not None else None)
-        points = self._relevant_points(scan, lower, upper)
-        dx = ell - points[:, 0]
-        dy = -points[:, 1]
-        distance = np.hypot(dx, dy)
-        degenerate = distance < 1e-9
-        if degenerate.any():  # a point exactly at p: push it back along -x
-            dx, dy, distance = dx.copy(), dy.copy(), distance.copy()
-            dx[degenerate], dy[degenerate], distance[degenerate] = 1.0, 0.0, 1.0
-        nx, ny = dx / distance, dy / distance
-        barrier = np.where(degenerate, 0.0, distance) - (robot.radius + ell + self.margin)
-        # Rows are divided by dt (units of m/s) for the solvers' sake.
-        count = len(points)
-        rows = np.empty((count, 4))
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = -nx, -ell * ny, self.kappa, self.kappa * ell
-        smallest = float(barrier.min()) if count else math.inf
-        # h(o, x+) >= (1 - gamma) H(x); with far_gamma < 1 also h(o, x+) >= (1 - far_gamma) h(o, x)
-        # for points outside the margin (inside it, the minimum condition is the recovery rule).
-        rhs = barrier - (1.0 - self.gamma) * smallest
-        if self.far_gamma < 1.0:
-            rhs = np.where(barrier > 0.0, np.minimum(rhs, self.far_gamma * barrier), rhs)
-        rhs /= dt
-        point = np.arange(count)
-        fov_rows: list[list[float]] = []
-        fov_rhs: list[float] = []
-        blocked = blocked_motion(scan, self.config.max_gap, self.config.side_tolerance)
-        if blocked.forward:
-            fov_rows.append([1.0, 0.0, 0.0, 0.0])
-            fov_rhs.append(0.0)
-        if blocked.backward:
-            fov_rows.append([-1.0, 0.0, 0.0, 0.0])
-            fov_rhs.append(0.0)
-        if fov_rows:
-            rows = np.vstack((rows, fov_rows))
-            rhs = np.concatenate((rhs, fov_rhs))
-            point = np.concatenate((point, np.full(len(fov_rhs), -1)))
-        G = rows
+    def _constraints(self, view: View, velocity: np.ndarray | None, period: float, *, cut: bool = True
+                     ) -> _Problem:
+        """Every row of every family, from every point that can matter (every point with ``cut=False``)."""
+        robot, body = self.robot, self.body
+        lower, upper = robot.velocity_bounds(velocity, period if velocity is not None else None)
+        kappa = 0.5 * robot.omega_max * period
+        geo = families.geometry(view.points, view.uncertainty, body.centres, body.radii, self.lookahead,
+                                self.margin, kappa)
+        disks = body.n_disks
+        per_point = geo.barrier.reshape(-1, disks).min(axis=1) if geo.barrier.size else np.empty(0)
+        min_barrier = float(per_point.min()) if per_point.size else math.inf
+        time_constant = self.time_constant if velocity is not None else 0.0
+        reaction = reaction_time(period, time_constant)
+        if cut and geo.barrier.size:
+            keep = geo.barrier <= self._binding_reach(lower, upper, velocity, min_barrier, period, reaction)
+            geo = families.Geometry(*(array[keep] for array in geo))
+        barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
+        obstacle = barrier
+        if velocity is not None:
+            braking = families.braking_rows(geo, robot.a_max, reaction)
+            tighter = braking.h < barrier.h
+            obstacle = families.Rows(barrier.G, np.minimum(barrier.h, braking.h), barrier.point,
+                                     np.where(tighter, braking.family, barrier.family))
+            sweep = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, period, reaction)
+            obstacle = families.stack(obstacle, sweep)
+            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant))
+        frontier = view.frontier
+        hard = families.stack(families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach),
+                              families.blind_rows(frontier.forward, frontier.backward))
+        rows = families.stack(obstacle, hard)
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
+        return _Problem(rows, view.points, per_point, min_barrier, np.concatenate((lower, t_low)),
+                        np.concatenate((upper, t_high)), velocity, (lower, upper))
+
+    def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
+                       period: float, reaction: float) -> float:
+        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
+        speed = max(abs(lower[0]), abs(upper[0]))
+        turn = max(abs(lower[1]), abs(upper[1]))
         if velocity is not None:
-            # Braking: the approach speed towards each point (the row's left side, in m/s) must
-            # let the base stop within that point's barrier after one period of reaction,
-            # v dt + v^2 / (2 a) <= h, at the acceleration limit a.
-            point_rows = point >= 0
-            accel = robot.a_max
-            reach = np.maximum(barrier, 0.0)
-            braking = np.sqrt((accel * dt) ** 2 + 2.0 * accel * reach) - accel * dt
-            rhs[point_rows] = np.minimum(rhs[point_rows], braking[point[point_rows]])
-            # The heading keeps turning while the base brakes: a point within the angle it can
-            # still sweep, Delta = (|omega| + alpha dt)(|v| / a + dt), caps the speed along the
-            # heading as if the base already faced it (forward for points ahead, reverse behind).
-            sweep = (abs(velocity[1]) + robot.alpha_max * dt) * (abs(velocity[0]) / accel + dt)
-            bearing = np.arctan2(points[:, 1], points[:, 0])
-            cone_rows, cone_rhs, cone_point = [], [], []
-            for sign, off_axis in ((1.0, np.abs(bearing)), (-1.0, math.pi - np.abs(bearing))):
-                effective = np.maximum(off_axis - sweep, 0.0)
-                inside = np.flatnonzero(effective < 0.5 * math.pi - 1e-6)
-                block = np.zeros((inside.size, 4))
-                block[:, 0] = sign * np.cos(effective[inside])
-                block[:, 2], block[:, 3] = self.kappa, self.kappa * ell
-                cone_rows.append(block)
-                cone_rhs.append(braking[inside])
-                cone_point.append(inside)
-            G = np.vstack((G, *cone_rows))
-            rhs = np.concatenate((rhs, *cone_rhs))
-            point = np.concatenate((point, *cone_point))
-            # The base ramps from velocity to the command: bound the mean velocity too.
-            mean_rows = G.copy()
-            mean_rows[:, :2] *= 0.5
-            mean_rhs = rhs - 0.5 * (G[:, :2] @ velocity)
-            G = np.vstack((G, mean_rows))
-            rhs = np.concatenate((rhs, mean_rhs))
-            point = np.concatenate((point, point))
-        return _Constraints(G, rhs, point, points, barrier, np.concatenate((lower, t_low)),
-                            np.concatenate((upper, t_high)), blocked, velocity)
+            speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
+        kappa = 0.5 * self.robot.omega_max * period
+        control = self.body.centres + np.array([self.lookahead, 0.0])
+        arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))
+        approach = (speed + arm * turn) * (1.0 + kappa)
+        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0)
+        if velocity is not None:
+            reach = max(reach, approach * reaction + approach**2 / (2.0 * self.robot.a_max))
+        return reach + 1e-9
 
     @staticmethod
-    def _lifted(u: np.ndarray, constraints: _Constraints) -> np.ndarray:
+    def _lifted(u: np.ndarray, problem: _Problem) -> np.ndarray:
         """``z = (v, omega, t_v, t_omega)`` with the smallest auxiliaries ``u`` allows."""
         t = np.abs(u)
-        if constraints.velocity is not None:
-            t = np.maximum(t, np.abs(constraints.velocity))
+        if problem.velocity is not None:
+            t = np.maximum(t, np.abs(problem.velocity))
         return np.concatenate((u, t))
 
-    def _problem(self, u_nom: np.ndarray, G: np.ndarray, rhs: np.ndarray, constraints: _Constraints,
-                 slack: bool = False) -> QPData:
+    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
         P = self._P
         # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
         target = np.clip(u_nom, self.robot.lower, self.robot.upper)
         q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
-        lower, upper = constraints.lower, constraints.upper
-        abs_rows = _ABS_ROWS
+        lower, upper = problem.lower, problem.upper
+        abs_rows = families.abs_rows()
+        G = np.vstack((abs_rows.G, rows.G))
+        h = np.concatenate((abs_rows.h, rows.h))
         if slack:
             P = np.diag([*np.diag(P), self.config.slack_weight])
             q = np.append(q, SLACK_LINEAR_WEIGHT)
-            G = np.column_stack((G, -np.ones(len(G))))
-            abs_rows = np.column_stack((abs_rows, np.zeros(4)))
+            soft = np.concatenate((np.zeros(len(abs_rows), dtype=bool), ~rows.hard))
+            G = np.column_stack((G, -soft.astype(float)))
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)
-        return QPData(P, q, np.vstack((abs_rows, G)), np.concatenate((_ABS_RHS, rhs)), lower, upper)
+        return QPData(P, q, G, h, lower, upper)
 
-    def _prune(self, constraints: _Constraints) -> np.ndarray:
-        """Mask of the rows that some reachable command could make active (the others never are)."""
-        G = constraints.G
-        worst = np.maximum(G * constraints.lower, G * constraints.upper).sum(axis=1)
-        return worst > constraints.rhs
+    @staticmethod
+    def _prune(rows: families.Rows, problem: _Problem) -> np.ndarray:
+        """Mask of the rows some command in the box could violate (the others never bind)."""
+        worst = np.maximum(rows.G * problem.lower, rows.G * problem.upper).sum(axis=1)
+        return worst > rows.h
 
-    def build_qp(self, u_nom: Any, scan: LaserScan, velocity: Any = None, *, reduce: bool = True
+    def rows(self, scan: LaserScan | Any, velocity: Any = None, *, reduce: bool = True) -> families.Rows:
+        """The rows of every family for ``scan``, with their points and families (see :meth:`build_qp`).
+
+        The auxiliary rows ``|v| <= t_v``, ``|omega| <= t_omega`` are not included; the point
+        indices refer to :meth:`points`.
+        """
+        view = self._observe(self._match(as_scans(scan)))
+        velocity = None if velocity is None else np.asarray(velocity, dtype=float)
+        problem = self._constraints(view, velocity, self.dt, cut=reduce)
+        return problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
+
+    def build_qp(self, u_nom: Any, scan: LaserScan | Any, velocity: Any = None, *, reduce: bool = True
                  ) -> qpsolvers.Problem:
-        """The QP the filter solves, for inspection, over ``z = (v, omega, t_v, t_omega)``.
+        """The QP the filter would solve, for inspection, over ``z = (v, omega, t_v, t_omega)``.
 
-        Rows 0-3 of ``G`` are ``|v| <= t_v`` and ``|omega| <= t_omega``; the rest are barrier
-        and field-of-view rows. With ``reduce=True`` the rows no reachable command can make
-        active are dropped (the answer is the same); with ``reduce=False`` every point gives a row.
+        Rows 0-3 of ``G`` are ``|v| <= t_v`` and ``|omega| <= t_omega``; the rest are the
+        families' rows (the filter's memory is used but not changed). With ``reduce=True``
+        points and rows that cannot bind are dropped (the answer is the same); with
+        ``reduce=False`` every family is built from every valid beam of every scan, with no cut.
         """
         u_nom = np.asarray(u_nom, dtype=float)
-        constraints = self._constraints(scan, None if velocity is None else np.asarray(velocity, dtype=float))
-        keep = self._prune(constraints) if reduce else np.ones(len(constraints.rhs), dtype=bool)
-        return self._problem(u_nom, constraints.G[keep], constraints.rhs[keep], constraints).problem()
+        view = self._observe(self._match(as_scans(scan)))
+        velocity = None if velocity is None else np.asarray(velocity, dtype=float)
+        problem = self._constraints(view, velocity, self.dt, cut=reduce)
+        rows = problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
+        return self._qp(u_nom, rows, problem).problem()
 
     # ------------------------------------------------------------------ filtering
 
-    def _filter(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray | None) -> FilterResult:
-        constraints = self._constraints(scan, velocity)
-        points, barrier = constraints.points, constraints.barrier
-        min_barrier = float(barrier.min()) if len(barrier) else math.inf
-        clearance = body_clearance(points, self.robot.radius)
-        G, rhs = constraints.G, constraints.rhs
-        details: dict[str, Any] = dict(min_barrier=min_barrier, clearance=clearance)
-
-        lower, upper = constraints.lower, constraints.upper
-        v, omega = u_nom
-        if (lower[0] <= v <= upper[0] and lower[1] <= omega <= upper[1]
-                and (G @ self._lifted(u_nom, constraints) <= rhs).all()):
+    def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        problem = self._constraints(view, velocity, period)
+        rows = problem.rows
+        points = problem.points
+        details: dict[str, Any] = dict(min_barrier=problem.min_barrier,
+                                       clearance=self.body.clearance(view.points))
+        lower, upper = problem.limits
+        if (lower[0] <= u_nom[0] <= upper[0] and lower[1] <= u_nom[1] <= upper[1]
+                and (rows.G @ self._lifted(u_nom, problem) <= rows.h).all()):
             return FilterResult(u=u_nom, u_nom=u_nom, status=FilterStatus.OK, **details)
 
+        candidate = np.flatnonzero(self._prune(rows, problem))
+        cand = rows.take(candidate)
         direct_rows = min(self.backend.direct_rows, DIRECT_ROWS)
-        if len(rhs) <= direct_rows:
-            # Few enough rows for one solve: skip the pruning (it would not pay for itself).
-            candidate = np.arange(len(rhs))
-            cand_G, cand_rhs, cand_point = G, rhs, constraints.point
-        else:
-            candidate = np.flatnonzero(self._prune(constraints))
-            cand_G, cand_rhs, cand_point = G[candidate], rhs[candidate], constraints.point[candidate]
         if candidate.size <= direct_rows:
             working = np.ones(candidate.size, dtype=bool)
         else:
-            # Initial working set: every field-of-view row and the tightest row per angular bin around p.
-            point_rows = np.flatnonzero(cand_point >= 0)
-            chosen = nearest_per_bin(points[cand_point[point_rows]], cand_rhs[point_rows], (self.lookahead, 0.0),
+            # Initial working set: every hard row and the tightest obstacle row per angular bin.
+            point_rows = np.flatnonzero(cand.point >= 0)
+            chosen = nearest_per_bin(points[cand.point[point_rows]], cand.h[point_rows], (self.lookahead, 0.0),
                                      self.config.n_bins)
-            working = cand_point < 0
+            working = cand.point < 0
             working[point_rows[chosen]] = True
         initial = working.copy()
-        z, working, solve_time, _ = self._solve_generating(u_nom, cand_G, cand_rhs, working, constraints)
+        z, working, solve_time, _ = self._solve_generating(u_nom, cand, working, problem)
         slack = 0.0
         status = FilterStatus.OK
-        message = ""
+        reason: Reason | None = None
         if z is None:
-            # No command satisfies every row: relax them all by one heavily penalised slack.
-            z, working, more_time, solver_status = self._solve_generating(u_nom, cand_G, cand_rhs, initial,
-                                                                           constraints, slack=True)
+            hard = cand.take(cand.hard)
+            if not self._hard_feasible(hard, problem):
+                return self._brake(u_nom, velocity, FilterStatus.BRAKING, *self._hard_reason(hard, problem),
+                                   solver=self.backend.name, solve_time=solve_time, period=period, **details)
+            # No command satisfies every row: relax the obstacle rows (never the hard ones) by one slack.
+            z, working, more_time, solver_status = self._solve_generating(u_nom, cand, initial, problem, slack=True)
             solve_time += more_time
             if z is None:
-                return self._brake(u_nom, constraints.velocity, FilterStatus.FALLBACK,
+                return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
                                    f"QP solver {self.backend.name} failed ({solver_status}) even with slack",
-                                   solver=self.backend.name, solve_time=solve_time, **details)
+                                   solver=self.backend.name, solve_time=solve_time, period=period, **details)
             z, slack = z[:4], max(float(z[4]), 0.0)
             if slack > VERIFY_TOLERANCE:
                 status = FilterStatus.SLACK
-                message = self._slack_reason(constraints, min_barrier, slack * self.dt)
-        if status is FilterStatus.OK and min_barrier < 0.0:
-            status = FilterStatus.RECOVERING
-            message = f"inside the margin of the nearest obstacle (barrier {min_barrier:.3f} m); moving back out"
-
-        u = np.clip(z[:2], constraints.lower[:2], constraints.upper[:2])
-        residual = G @ self._lifted(u, constraints) - rhs - slack
+        u = np.clip(z[:2], lower, upper)
+        frontier = view.frontier
+        if frontier.backward:   # exactly never towards an unseen rear (the solver meets rows to ~1e-10)
+            u[0] = max(u[0], min(0.0, upper[0]))
+        if frontier.forward:
+            u[0] = min(u[0], max(0.0, lower[0]))
+        lifted = self._lifted(u, problem)
+        residual = rows.G @ lifted - rows.h - np.where(rows.hard, 0.0, slack)
         if not np.all(residual <= VERIFY_TOLERANCE):
             worst = int(np.argmax(residual))
-            return self._brake(u_nom, constraints.velocity, FilterStatus.FALLBACK,
-                               f"QP answer from {self.backend.name} violates row {worst} by {residual[worst]:.3g} m/s",
-                               solver=self.backend.name, solve_time=solve_time, **details)
+            return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
+                               f"QP answer from {self.backend.name} violates a {self._family(rows, worst)} row by "
+                               f"{residual[worst]:.3g} m/s", solver=self.backend.name, solve_time=solve_time,
+                               period=period, **details)
+        if status is FilterStatus.SLACK:
+            worst = int(np.argmax(np.where(rows.hard, -np.inf, rows.G @ lifted - rows.h)))
+            reason = self._slack_reason(rows, worst, points, problem.min_barrier, slack * period)
+        else:
+            reason = self._binding(u, u_nom, rows, rows.G @ lifted - rows.h, points, problem)
+            if problem.min_barrier < 0.0:
+                status = FilterStatus.RECOVERING
+                reason = Reason("barrier", f"inside the margin (barrier {problem.min_barrier:.3f} m); moving back "
+                                           "out", _nearest(points, problem.barrier))
         rows_used = candidate[working]
-        row_points = constraints.point[rows_used]
-        used = np.zeros(len(points) + 1, dtype=bool)  # the extra slot absorbs field-of-view rows (-1)
+        row_points = rows.point[rows_used]
+        used = np.zeros(len(points) + 1, dtype=bool)   # the extra slot absorbs rows without a point (-1)
         used[row_points] = True
         active = np.zeros(len(points) + 1, dtype=bool)
         active[row_points[np.abs(residual[rows_used]) <= 1e-6]] = True
         used, active = used[:-1], active[:-1]
         return FilterResult(
-            u=u, u_nom=u_nom, status=status, message=message, n_constraints=int(working.sum()),
+            u=u, u_nom=u_nom, status=status, reason=reason, n_constraints=int(working.sum()),
             constraint_points=points[used], active=np.flatnonzero(active[used]),
-            slack=slack * self.dt if status is FilterStatus.SLACK else 0.0, solver=self.backend.name,
+            slack=slack * period if status is FilterStatus.SLACK else 0.0, solver=self.backend.name,
             solve_time=solve_time, **details,
         )
 
-    def _solve_generating(self, u_nom: np.ndarray, G: np.ndarray, rhs: np.ndarray, working: np.ndarray,
-                          constraints: _Constraints, slack: bool = False
-                          ) -> tuple[np.ndarray | None, np.ndarray, float, str]:
+    def _solve_generating(self, u_nom: np.ndarray, rows: families.Rows, working: np.ndarray, problem: _Problem,
+                          slack: bool = False) -> tuple[np.ndarray | None, np.ndarray, float, str]:
         """Solve over the rows in ``working``, adding violated rows until none is (constraint generation).
 
         Returns the solution (``None`` on failure), the final working set, the solve time [s]
@@ -471,26 +458,79 @@ class CBFSafetyFilter(SafetyFilter):
         working = working.copy()
         solve_time = 0.0
         outcome = None
+        soft = ~rows.hard
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
-            outcome = self.backend.solve(self._problem(u_nom, G[working], rhs[working], constraints, slack=slack))
+            outcome = self.backend.solve(self._qp(u_nom, rows.take(working), problem, slack=slack))
             solve_time += outcome.solve_time
             z = outcome.x
             if z is None:
                 return None, working, solve_time, outcome.status
-            lhs = G @ z[:4] - (z[4] if slack else 0.0)
-            violated = (lhs > rhs + 0.1 * VERIFY_TOLERANCE) & ~working
+            lhs = rows.G @ z[:4] - (soft * z[4] if slack else 0.0)
+            violated = (lhs > rows.h + 0.1 * VERIFY_TOLERANCE) & ~working
             if not violated.any():
                 return z, working, solve_time, outcome.status
             working |= violated
         return None, working, solve_time, "constraint generation did not settle"
 
-    def _slack_reason(self, constraints: _Constraints, min_barrier: float, slack: float) -> str:
-        """Why no command satisfied every row; ``slack`` is the relaxation per period [m]."""
+    def _hard_feasible(self, hard: families.Rows, problem: _Problem) -> bool:
+        """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP)."""
+        if not len(hard):
+            return True
+        qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((families.abs_rows().G, hard.G)),
+                    np.concatenate((families.abs_rows().h, hard.h)), problem.lower, problem.upper)
+        z = self.backend.solve(qp).x
+        return z is not None and bool(np.all(hard.G @ z <= hard.h + VERIFY_TOLERANCE))
+
+    @staticmethod
+    def _family(rows: families.Rows, index: int) -> str:
+        return families.FAMILIES[int(rows.family[index])]
+
+    def _hard_reason(self, hard: families.Rows, problem: _Problem) -> tuple[str, str]:
+        names = sorted({families.FAMILIES[int(f)] for f in hard.family})
+        what = "an unseen direction" if "blind" in names else "space behind invalid beams"
+        return ("unknown", f"cannot stop before moving towards {what} ({', '.join(names)} rows) within the "
+                           f"acceleration limits; braking at the limits")
+
+    def _slack_reason(self, rows: families.Rows, worst: int, points: np.ndarray, min_barrier: float,
+                      slack: float) -> Reason:
+        """Why no command satisfied every obstacle row; ``slack`` is the relaxation per period [m]."""
+        point = _point(points, int(rows.point[worst]))
+        family = self._family(rows, worst)
         if min_barrier < 0.0:
-            return (f"already inside the margin (barrier {min_barrier:.3f} m); constraints relaxed by "
-                    f"{slack:.4f} m, moving away")
-        if constraints.blocked.forward or constraints.blocked.backward:
-            return f"cannot stop before moving towards an unseen direction; constraints relaxed by {slack:.4f} m"
-        return f"cannot brake in time under the acceleration limits; constraints relaxed by {slack:.4f} m"
+            return Reason(family, f"already inside the margin (barrier {min_barrier:.3f} m); obstacle rows "
+                                  f"relaxed by {slack:.4f} m, moving away", point)
+        return Reason(family, f"cannot brake in time under the acceleration limits; obstacle rows relaxed by "
+                              f"{slack:.4f} m", point)
+
+    def _binding(self, u: np.ndarray, u_nom: np.ndarray, rows: families.Rows, residual: np.ndarray,
+                 points: np.ndarray, problem: _Problem) -> Reason | None:
+        """The constraint that bound ``u`` (``None`` when ``u`` is ``u_nom``)."""
+        if np.array_equal(u, u_nom):
+            return None
+        active = np.flatnonzero(residual >= -1e-6)
+        if active.size:
+            # The active row the nominal violates most is the one that moved the command.
+            nominal_residual = rows.G[active] @ self._lifted(np.clip(u_nom, *problem.limits), problem) \
+                - rows.h[active]
+            index = int(active[int(np.argmax(nominal_residual))])
+            family = self._family(rows, index)
+            text = {"barrier": "keeps the barrier condition", "braking": "keeps the speed it can brake from",
+                    "sweep": "caps the speed along a heading the base may still turn to",
+                    "gap": "does not move towards space behind invalid beams",
+                    "blind": "does not translate towards a side no lidar sees"}[family]
+            return Reason(family, text, _point(points, int(rows.point[index])))
+        robot = self.robot
+        if np.any(u_nom < robot.lower) or np.any(u_nom > robot.upper):
+            return Reason("limits", f"clipped to the velocity limits {robot.lower.tolist()}..{robot.upper.tolist()}")
+        return Reason("acceleration", f"not reachable within one period from the velocity "
+                                      f"{problem.velocity.tolist() if problem.velocity is not None else None}")
+
+
+def _point(points: np.ndarray, index: int) -> tuple[float, float] | None:
+    return None if index < 0 else (float(points[index, 0]), float(points[index, 1]))
+
+
+def _nearest(points: np.ndarray, barrier: np.ndarray) -> tuple[float, float] | None:
+    return None if barrier.size == 0 else _point(points, int(np.argmin(barrier)))

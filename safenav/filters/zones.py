@@ -22,10 +22,8 @@ from typing import Any
 import numpy as np
 
 from safenav.errors import InvalidConfig
-from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
-from safenav.filters.reduction import body_clearance
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
 from safenav.robot import RobotSpec
-from safenav.scan import LaserScan
 
 __all__ = ["ZonesConfig", "ZonesFilter", "inflate_footprint"]
 
@@ -117,7 +115,7 @@ class ZonesFilter(SafetyFilter):
 
     def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: ZonesConfig | None = None, **overrides: Any):
         config = ZonesConfig(**{**(config.__dict__ if config else {}), **overrides})
-        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=False)
+        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=False, memory_capacity=0)
         self.config = config
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
@@ -127,18 +125,31 @@ class ZonesFilter(SafetyFilter):
         self._stop = Path(self.stop_polygon)
         self._slowdown = Path(self.slowdown_polygon)
 
-    def _filter(self, u_nom: np.ndarray, scan: LaserScan, velocity: np.ndarray | None) -> FilterResult:
-        points = scan.points()
-        clearance = body_clearance(points, self.robot.radius)
+    def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        points = view.points[: view.n_current]   # like the collision monitor: the current scans only
+        clearance = self.body.clearance(points)
         in_slowdown = self._slowdown.contains_points(points) if len(points) else np.zeros(0, dtype=bool)
         near = points[in_slowdown]
         in_stop = self._stop.contains_points(near) if len(near) else np.zeros(0, dtype=bool)
+        reason = None
         if int(in_stop.sum()) >= self.config.min_points:
-            u, message = np.zeros(2), f"stop zone: {int(in_stop.sum())} points inside"
+            u = np.zeros(2)
+            reason = Reason("zone", f"stop zone: {int(in_stop.sum())} points inside", _nearest(near[in_stop]))
         elif len(near) >= self.config.min_points:
-            u, message = self.config.slowdown_ratio * u_nom, f"slowdown zone: {len(near)} points inside"
+            u = self.config.slowdown_ratio * u_nom
+            reason = Reason("zone", f"slowdown zone: {len(near)} points inside", _nearest(near))
         else:
-            u, message = u_nom, ""
-        u = self.robot.clip(u, velocity, self.dt if velocity is not None else None)
-        return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK, message=message, clearance=clearance,
+            u = u_nom
+        limited = self.robot.clip(u, velocity, self.dt if velocity is not None else None)
+        if reason is None and not np.array_equal(limited, u_nom):
+            reason = Reason("acceleration" if velocity is not None else "limits",
+                            "clipped to the velocity and acceleration limits")
+        return FilterResult(u=limited, u_nom=u_nom, status=FilterStatus.OK, reason=reason, clearance=clearance,
                             n_constraints=len(near), constraint_points=near)
+
+
+def _nearest(points: np.ndarray) -> tuple[float, float] | None:
+    if len(points) == 0:
+        return None
+    index = int(np.argmin(np.hypot(points[:, 0], points[:, 1])))
+    return (float(points[index, 0]), float(points[index, 1]))

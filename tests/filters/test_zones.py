@@ -23,7 +23,8 @@ def test_point_inside_the_stop_polygon_stops(robot):
     scan = synthetic_scan(robot, Scene.of(Circle((front_of(robot) + 0.03 + 0.05, 0.0), 0.05)))
     result = filt.filter((0.3, 0.5), scan)
     assert result.u.tolist() == [0.0, 0.0]
-    assert result.message.startswith("stop zone")
+    assert result.reason.family == "zone" and result.reason.detail.startswith("stop zone")
+    assert result.reason.point is not None
     assert result.status is FilterStatus.OK
 
 
@@ -32,7 +33,7 @@ def test_point_inside_the_slowdown_polygon_scales_the_command(robot):
     scan = synthetic_scan(robot, Scene.of(wall(front_of(robot) + 0.3)))
     result = filt.filter((0.3, 0.5), scan)
     assert result.u == pytest.approx([0.3 * 0.3, 0.3 * 0.5])
-    assert result.message.startswith("slowdown zone")
+    assert result.reason.family == "zone" and result.reason.detail.startswith("slowdown zone")
 
 
 def test_nothing_near_passes_the_command_unchanged(robot):
@@ -40,6 +41,7 @@ def test_nothing_near_passes_the_command_unchanged(robot):
     scan = synthetic_scan(robot, Scene.of(wall(2.0)))
     result = filt.filter((0.3, -0.5), scan)
     assert result.u.tolist() == [0.3, -0.5] and not result.modified and result.message == ""
+    assert result.reason is None
 
 
 def test_stop_zone_ignores_the_direction_of_motion():

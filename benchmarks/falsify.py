@@ -1,0 +1,621 @@
+"""An adversarial search for the filters' safety: the project's own falsifier.
+
+The filters state a guarantee (``docs/safety.md``): inside its assumptions the body keeps
+``margin`` of clearance from every obstacle. This benchmark tries to break it. It owns a
+small simulator that shares nothing with ``safenav.sim_bullet`` (exact analytic ray casting
+against circles and segments, the exact unicycle in 20 sub-steps per period, four models of
+the base's velocity loop) and searches scenario parameters with CMA-ES (the ``cma`` package)
+from seeded random starts, minimising
+
+    objective = min over the episode of (true clearance - margin)
+
+with the filter's own minimum barrier as a tie-breaker. Each episode starts inside the
+assumptions: every obstacle at least ``margin`` from the body and the filter's barrier
+``H >= 0`` on its first call. A violation is a contact, or a clearance below
+``margin - tolerance`` (1 cm). Every worst case is printed with a one-line reproduction::
+
+    python -m benchmarks.falsify --episodes 2000 --seed 0 --json falsify.json
+    python -m benchmarks.falsify --replay '{"robot": "m2wr", ...}'
+
+Bases (the velocity ``w(t)`` within a period, from the period's start ``w0`` to the
+command ``u``): ``instant`` (``w = u``), ``ramp`` (linear from ``w0`` to ``u`` over the
+period), ``ramp_limit`` (towards ``u`` at the acceleration limits, then held), ``lag``
+(first order, ``w = u + (w0 - u) exp(-t / tau)``, ``tau = dt``). Without odometry
+(``velocity`` not given to the filter) only the instant base is inside the assumptions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+if __package__ in (None, ""):  # run as a script: make the repository importable
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+
+from safenav.filters import make_filter
+from safenav.filters.perception import START_BLIND_CLEARANCE
+from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
+from safenav.robot import RobotSpec, preset
+from safenav.scan import LaserScan
+from safenav.synthetic import Circle, Scene, Segment, cast
+
+__all__ = [
+    "BASES",
+    "NOMINALS",
+    "Episode",
+    "Outcome",
+    "run",
+    "search",
+]
+
+BASES = ("instant", "ramp", "ramp_limit", "lag")
+"""Models of the base's velocity loop (see the module docstring)."""
+NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script")
+"""Nominal policies an episode can use (``script`` replays a fixed command sequence)."""
+SEARCHED_NOMINALS = NOMINALS[:-1]
+"""Nominal policies the search drives the filter with."""
+SUBSTEPS = 20
+"""Exact unicycle sub-steps per control period."""
+TOLERANCE = 0.01
+"""A clearance below ``margin - TOLERANCE`` [m] counts as a violation."""
+
+
+# ---------------------------------------------------------------------------------------------- episodes
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One adversarial episode: everything needed to replay it exactly.
+
+    Attributes:
+        robot: preset name.
+        filter: filter name (``"cbf"``, ``"mpc"``).
+        base: base model (one of :data:`BASES`).
+        dt: control period [s].
+        give_velocity: pass the measured velocity to the filter (odometry).
+        circles: ``(x, y, radius)`` poles in the start pose's base frame [m].
+        segments: ``(x0, y0, x1, y1)`` walls in the start pose's base frame [m].
+        nominal: one of :data:`NOMINALS`.
+        params: the nominal's parameters (see :func:`nominal_policy`).
+        velocity: the base's velocity at the start ``(v [m/s], omega [rad/s])``.
+        duration: simulated time [s].
+        noise: range noise, uniform within ``+- noise`` [m] (inside the filters' ``2 noise_std``).
+        seed: seed of the range noise.
+        settings: filter settings passed to :func:`safenav.filters.make_filter`.
+        period: how long each command is really held [s] (default ``dt``); the filter is told
+            the time (``now``), so a longer period is a late call it must plan for.
+    """
+
+    robot: str
+    filter: str
+    base: str
+    dt: float
+    give_velocity: bool = True
+    circles: tuple[tuple[float, float, float], ...] = ()
+    segments: tuple[tuple[float, float, float, float], ...] = ()
+    nominal: str = "arc"
+    params: tuple[float, ...] = (0.5, 0.0)
+    velocity: tuple[float, float] = (0.0, 0.0)
+    duration: float = 4.0
+    noise: float = 0.0
+    seed: int = 0
+    settings: dict[str, Any] = field(default_factory=dict)
+    period: float | None = None
+
+    def to_json(self) -> str:
+        """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
+        return json.dumps(dataclasses.asdict(self), separators=(",", ":"))
+
+    @classmethod
+    def from_json(cls, text: str) -> Episode:
+        data = json.loads(text)
+        for name in ("circles", "segments"):
+            if name in data:
+                data[name] = tuple(tuple(item) for item in data[name])
+        for name in ("params", "velocity"):
+            if name in data:
+                data[name] = tuple(data[name])
+        return cls(**data)
+
+    def scene(self) -> Scene:
+        return Scene(tuple(Segment((a, b), (c, d)) for a, b, c, d in self.segments),
+                     tuple(Circle((x, y), r) for x, y, r in self.circles))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What happened in an :class:`Episode` (truth from the falsifier's own simulator).
+
+    Attributes:
+        min_clearance: smallest distance from the body disk to an obstacle over every sub-step [m].
+        margin: the filter's margin [m].
+        start_barrier: the filter's ``min_barrier`` on its first call [m].
+        min_barrier: smallest ``min_barrier`` the filter reported [m].
+        contact: the body touched an obstacle.
+        violation_step: first period whose sub-steps went below ``margin - TOLERANCE`` (``None`` if none).
+        statuses: periods per filter status.
+        steps: periods simulated.
+    """
+
+    min_clearance: float
+    margin: float
+    start_barrier: float
+    min_barrier: float
+    contact: bool
+    violation_step: int | None
+    statuses: dict[str, int]
+    steps: int
+
+    hidden_at_start: bool = False
+
+    @property
+    def valid(self) -> bool:
+        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, and nothing
+        hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
+        return self.start_barrier >= 0.0 and not self.hidden_at_start
+
+    @property
+    def violated(self) -> bool:
+        return self.valid and (self.contact or self.min_clearance < self.margin - TOLERANCE)
+
+    @property
+    def objective(self) -> float:
+        """What the search minimises: clearance beyond the margin [m] (large when invalid)."""
+        if not self.valid:
+            return 1.0 - min(self.start_barrier, 0.0) + float(self.hidden_at_start)
+        return self.min_clearance - self.margin
+
+
+def hidden_at_start(robot: RobotSpec, scene: Scene, margin: float) -> bool:
+    """Whether some obstacle lies within ``START_BLIND_CLEARANCE`` of the body (disk) at the start pose in
+    a direction outside the lidar's field of view (occlusion does not count: the filters must handle it)."""
+    reach = robot.radius + margin + START_BLIND_CLEARANCE
+    samples = []
+    for (x, y), radius in ((c.center, c.radius) for c in scene.circles):
+        angles = np.linspace(0.0, 2.0 * math.pi, 181)
+        samples.append(np.column_stack((x + radius * np.cos(angles), y + radius * np.sin(angles))))
+    for segment in scene.segments:
+        t = np.linspace(0.0, 1.0, 801)[:, None]
+        samples.append(np.asarray(segment.start) + t * (np.asarray(segment.end) - np.asarray(segment.start)))
+    if not samples:
+        return False
+    points = np.vstack(samples)
+    points = points[np.hypot(points[:, 0], points[:, 1]) <= reach]
+    if points.shape[0] == 0:
+        return False
+    lidar = robot.lidar
+    mount = lidar.mount
+    bearing = np.arctan2(points[:, 1] - mount.y, points[:, 0] - mount.x) - mount.yaw
+    offset = np.mod(bearing - lidar.angle_min + 0.5 * lidar.angle_increment, 2.0 * math.pi)
+    inside = offset <= (lidar.angle_max - lidar.angle_min) + lidar.angle_increment
+    return bool(np.any(~inside))
+
+
+def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.ndarray], np.ndarray]:
+    """The nominal ``(t, points) -> (v, omega)`` of an episode; ``points`` are the filter's view.
+
+    ``arc`` (v, omega): constant. ``bang_bang`` (v, omega, period): omega changes sign every
+    ``period`` [s]. ``aim_nearest`` (v, gain): full speed at the nearest scan point, turning
+    towards it. ``spin_then_go`` (omega, t_spin, v): spin for ``t_spin`` [s], then drive.
+    ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``script`` (t_1, v_1, omega_1,
+    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after.
+    """
+    p = episode.params
+    kind = episode.nominal
+    if kind in ("arc", "reverse"):
+        command = np.array([p[0], p[1]])
+        return lambda t, points: command
+    if kind == "bang_bang":
+        return lambda t, points: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
+    if kind == "script":
+        table = np.asarray(p, dtype=float).reshape(-1, 3)
+
+        def script(t: float, points: np.ndarray) -> np.ndarray:
+            row = int(np.searchsorted(table[:, 0], t, side="right"))
+            return table[min(row, len(table) - 1), 1:].copy()
+        return script
+    if kind == "spin_then_go":
+        return lambda t, points: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
+    if kind == "aim_nearest":
+        def aim(t: float, points: np.ndarray) -> np.ndarray:
+            if len(points) == 0:
+                return np.array([p[0], 0.0])
+            nearest = points[np.argmin(np.hypot(points[:, 0], points[:, 1]))]
+            return np.array([p[0], p[1] * math.atan2(nearest[1], nearest[0])])
+        return aim
+    raise ValueError(f"unknown nominal {kind!r}; expected one of {NOMINALS}")
+
+
+def _velocity_profile(base: str, start: np.ndarray, command: np.ndarray, robot: RobotSpec, dt: float,
+                      time_constant: float | None = None) -> np.ndarray:
+    """The base's velocity at the middle of each of the :data:`SUBSTEPS` sub-steps, ``(SUBSTEPS + 1, 2)``.
+
+    Row ``k < SUBSTEPS`` is the mean velocity over sub-step ``k`` (exact for every model, so the
+    pose integrates exactly up to the arc within a sub-step); the last row is the end velocity.
+    """
+    h = dt / SUBSTEPS
+    edges = np.arange(SUBSTEPS + 1) * h
+    if base == "instant":
+        rows = np.tile(command, (SUBSTEPS + 1, 1))
+        return rows
+    if base == "ramp":
+        velocity = start + (command - start) * (edges / dt)[:, None]
+        means = 0.5 * (velocity[:-1] + velocity[1:])
+        return np.vstack((means, velocity[-1]))
+    if base == "ramp_limit":
+        rate = np.array([robot.a_max, robot.alpha_max])
+        change = command - start
+        reach = np.minimum(np.abs(change), rate * edges[:, None]) * np.sign(change)
+        velocity = start + reach
+        # The mean over a sub-step of a clipped ramp: integrate exactly (piecewise linear in time).
+        means = np.empty((SUBSTEPS, 2))
+        for axis in range(2):
+            done = np.abs(change[axis]) / rate[axis]     # time at which the command is reached
+            a, b = edges[:-1], edges[1:]
+            split = np.clip(done, a, b)
+            sign = math.copysign(1.0, change[axis]) if change[axis] else 0.0
+            ramp_part = (start[axis] * (split - a) + sign * rate[axis] * 0.5 * (split**2 - a**2))
+            hold_part = command[axis] * (b - split)
+            means[:, axis] = (ramp_part + hold_part) / h
+        return np.vstack((means, velocity[-1]))
+    if base == "lag":
+        tau = dt if time_constant is None else time_constant
+        decay = np.exp(-edges / tau)
+        velocity = command + (start - command) * decay[:, None]
+        # Mean over [a, b] of u + (w0 - u) e^{-t/tau}: u + (w0 - u) tau (e^{-a/tau} - e^{-b/tau}) / h.
+        means = command + (start - command) * (tau * (decay[:-1] - decay[1:]) / h)[:, None]
+        return np.vstack((means, velocity[-1]))
+    raise ValueError(f"unknown base {base!r}; expected one of {BASES}")
+
+
+def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.random.Generator,
+          stamp: float) -> LaserScan:
+    lidar = robot.lidar
+    template = lidar.scan()
+    sensor = pose.compose(lidar.mount)
+    ranges = cast((sensor.x, sensor.y), template.angles + sensor.yaw, scene)
+    finite = np.isfinite(ranges)
+    if noise > 0.0:
+        ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
+    ranges[ranges > lidar.range_max] = math.inf
+    ranges[ranges < lidar.range_min] = -math.inf
+    return template.with_ranges(ranges).replace(stamp=stamp)
+
+
+def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
+    """Distance from a disk of ``radius`` at each of ``centres`` ``(K, 2)`` to the nearest item [m]."""
+    best = np.full(centres.shape[0], math.inf)
+    segments = scene._segment_array
+    if segments.size:
+        a, b = segments[:, :2], segments[:, 2:]
+        ab = b - a
+        length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+        relative = centres[:, None, :] - a[None]
+        t = np.clip(np.einsum("kij,ij->ki", relative, ab) / length2, 0.0, 1.0)
+        nearest = a[None] + t[..., None] * ab[None]
+        best = np.minimum(best, np.min(np.hypot(*(centres[:, None, :] - nearest).transpose(2, 0, 1)), axis=1))
+    circles = scene._circle_array
+    if circles.size:
+        gaps = np.hypot(centres[:, None, 0] - circles[None, :, 0], centres[:, None, 1] - circles[None, :, 1])
+        best = np.minimum(best, np.min(gaps - circles[None, :, 2], axis=1))
+    return best - radius
+
+
+def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[str, Any]]]:
+    """Simulate ``episode``; returns its outcome and, with ``record``, one dict per period."""
+    robot = preset(episode.robot)
+    dt = episode.dt
+    safety = make_filter(episode.filter, robot, dt, **episode.settings)
+    margin = float(safety.margin)
+    scene = episode.scene()
+    policy = nominal_policy(episode, robot)
+    rng = np.random.default_rng(episode.seed)
+    pose = Pose2D()
+    velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
+    radius = robot.radius
+    min_clearance = scene.clearance((0.0, 0.0), radius)
+    contact = min_clearance < 0.0
+    violation_step = None
+    statuses: dict[str, int] = {}
+    start_barrier = math.nan
+    min_barrier = math.inf
+    log: list[dict[str, Any]] = []
+    period = episode.period if episode.period is not None else dt
+    steps = round(episode.duration / period)
+    h = period / SUBSTEPS
+    clearance = min_clearance
+    for step in range(steps):
+        t = step * period
+        scan = _scan(robot, scene, pose, episode.noise, rng, t)
+        u_nom = policy(t, scan.points())
+        result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
+        if step == 0:
+            start_barrier = min(result.min_barrier, min_clearance - margin)
+        min_barrier = min(min_barrier, result.min_barrier)
+        statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+        command = np.asarray(result.u, dtype=float)
+        profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
+        poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
+        pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
+        clearances = _clearances(scene, poses[1:, :2], radius)
+        clearance = float(clearances[-1])
+        lowest = float(clearances.min())
+        min_clearance = min(min_clearance, lowest)
+        contact = contact or lowest < 0.0
+        if violation_step is None and lowest < margin - TOLERANCE:
+            violation_step = step
+        velocity = profile[-1].copy()
+        if record:
+            log.append(dict(step=step, t=t, u_nom=np.asarray(u_nom, dtype=float).tolist(), u=command.tolist(),
+                            status=result.status.value, message=result.message, min_barrier=result.min_barrier,
+                            clearance=clearance, pose=(pose.x, pose.y, wrap_angle(pose.yaw)),
+                            velocity=velocity.tolist()))
+        if contact and not record:
+            break
+    outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
+                      statuses, step + 1, hidden_at_start(robot, scene, margin))
+    return outcome, log
+
+
+# ---------------------------------------------------------------------------------------------- search space
+
+
+def _unit(x: np.ndarray, i: int) -> float:
+    """Coordinate ``i`` folded into [0, 1] (CMA-ES searches an unbounded space)."""
+    value = x[i] % 2.0
+    return float(value if value <= 1.0 else 2.0 - value)
+
+
+GEOMETRIES = ("poles", "wall", "door", "poles_and_wall")
+"""Obstacle layouts the search places around the start pose."""
+N_COORDINATES = 18
+
+
+def _pick(unit: float, options: Sequence[str]) -> str:
+    return options[min(int(unit * len(options)), len(options) - 1)]
+
+
+def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
+           geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
+           settings: dict[str, Any] | None = None) -> Episode:
+    """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
+
+    ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
+    and 17 of the vector choose (so one search covers them all).
+    """
+    spec = preset(robot)
+    R = spec.radius
+    u = [_unit(x, i) for i in range(N_COORDINATES)]
+    if not isinstance(geometry, str):
+        geometry = _pick(u[16], geometry)
+    if not isinstance(nominal, str):
+        nominal = _pick(u[17], nominal)
+    keep_out = R + margin + 1e-3
+    circles: list[tuple[float, float, float]] = []
+    segments: list[tuple[float, float, float, float]] = []
+    gap = spec.lidar.angle_increment
+
+    def pole(distance_unit: float, bearing_unit: float, radius_unit: float) -> tuple[float, float, float]:
+        # Thin poles just wider than the beam gap 1 m away, up to 10 cm.
+        radius = 0.5 * gap + radius_unit * 0.1
+        distance = keep_out + radius + distance_unit * 1.5
+        bearing = (bearing_unit * 2.0 - 1.0) * math.pi
+        return (distance * math.cos(bearing), distance * math.sin(bearing), radius)
+
+    if geometry in ("poles", "poles_and_wall"):
+        circles.append(pole(u[0], u[1], u[2]))
+        circles.append(pole(u[3], u[4], u[5]))
+    if geometry in ("wall", "poles_and_wall"):
+        # A long wall at a shallow or steep angle, its nearest point outside the margin.
+        distance = keep_out + u[6] * 1.5
+        normal = (u[7] * 2.0 - 1.0) * math.pi
+        tangent = normal + 0.5 * math.pi
+        cx, cy = distance * math.cos(normal), distance * math.sin(normal)
+        tx, ty = 4.0 * math.cos(tangent), 4.0 * math.sin(tangent)
+        segments.append((cx - tx, cy - ty, cx + tx, cy + ty))
+    if geometry == "door":
+        # A wall with one door across the heading, its gap a little wider than the body needs.
+        distance = keep_out + u[6] * 1.2
+        angle = (u[7] - 0.5) * 0.8 * math.pi
+        width = 2.0 * (R + margin) + 0.02 + u[8] * 0.3
+        offset = (u[9] - 0.5) * 0.4
+        c, s = math.cos(angle), math.sin(angle)
+        along = np.array([-s, c])
+        centre = np.array([distance * c, distance * s]) + offset * along
+        for sign in (-1.0, 1.0):
+            near = centre + sign * 0.5 * width * along
+            far = centre + sign * 4.0 * along
+            segments.append((near[0], near[1], far[0], far[1]))
+        if u[10] > 0.5:   # a back wall behind the door
+            back = centre + (0.4 + u[11]) * np.array([c, s])
+            segments.append((*(back - 3.0 * along), *(back + 3.0 * along)))
+    v_scale = max(spec.v_max, -spec.v_min)
+    if nominal == "arc":
+        params: tuple[float, ...] = (spec.v_max * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
+    elif nominal == "bang_bang":
+        params = (spec.v_max * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0), 0.1 + 1.5 * u[14])
+    elif nominal == "aim_nearest":
+        params = (spec.v_max * (0.3 + 0.7 * u[12]), 0.5 + 4.0 * u[13])
+    elif nominal == "spin_then_go":
+        params = (spec.omega_max * (2.0 * u[13] - 1.0), 2.0 * u[14], spec.v_max * (0.2 + 0.8 * u[12]))
+    elif nominal == "reverse":
+        params = (spec.v_min * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
+    else:
+        raise ValueError(f"unknown nominal {nominal!r}")
+    start_velocity = (0.0, 0.0)
+    if give_velocity and u[15] > 0.5:   # start already moving, at up to half the limits
+        start_velocity = ((u[15] - 0.5) * v_scale, (u[14] - 0.5) * spec.omega_max)
+    settings = dict(settings or {})
+    if base == "lag":   # the guarantee covers a lagging base the filter is told about
+        settings.setdefault("time_constant", dt)
+    return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
+                   circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
+                   velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
+                   seed=int(1e6 * u[0]) % 10_000, settings=settings)
+
+
+@dataclass(frozen=True)
+class Found:
+    """One evaluated episode of the search."""
+
+    episode: Episode
+    outcome: Outcome
+
+
+def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
+           optimiser: str = "cma") -> list[Found]:
+    """Search one cell (robot, filter, base, dt, geometry, nominal) for the worst episode.
+
+    Args:
+        cell: keyword arguments of :func:`decode` other than the vector and the margin.
+        episodes: episodes to spend in this cell.
+        seed: seed of the random start and of CMA-ES.
+        margin: the filter's margin [m] (the decoder keeps every obstacle outside it).
+        optimiser: ``"cma"`` (CMA-ES restarted from seeded random points) or ``"random"``.
+
+    Returns:
+        Every evaluated episode.
+    """
+    rng = np.random.default_rng(seed)
+    found: list[Found] = []
+
+    def evaluate(x: np.ndarray) -> float:
+        episode = decode(np.asarray(x, dtype=float), margin=margin, **cell)
+        outcome, _ = run(episode)
+        found.append(Found(episode, outcome))
+        # Tie-break on the filter's own barrier so the search moves towards trouble even without contact.
+        return outcome.objective + 0.1 * max(min(outcome.min_barrier, 1.0), -1.0)
+
+    if optimiser == "random":
+        for _ in range(episodes):
+            evaluate(rng.uniform(0.0, 1.0, N_COORDINATES))
+        return found
+    import cma
+
+    while len(found) < episodes:
+        budget = episodes - len(found)
+        start = rng.uniform(0.0, 1.0, N_COORDINATES)
+        options = {"seed": int(rng.integers(1, 2**31 - 1)), "maxfevals": budget, "verbose": -9,
+                   "popsize": min(8, max(4, budget // 4))}
+        strategy = cma.CMAEvolutionStrategy(start, 0.3, options)
+        while not strategy.stop() and len(found) < episodes:
+            candidates = strategy.ask()
+            strategy.tell(candidates, [evaluate(c) for c in candidates])
+    return found[:episodes]
+
+
+# ---------------------------------------------------------------------------------------------- command line
+
+
+def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
+           geometries: Sequence[str], nominals: Sequence[str]) -> list[dict[str, Any]]:
+    """One search per robot, filter, period and base (with and without odometry for the instant
+    base); the geometry and the nominal are searched inside each."""
+    cells = []
+    for robot in robots:
+        for filter_name in filters:
+            for dt in dts:
+                for base in bases:
+                    for give_velocity in ((True, False) if base == "instant" else (True,)):
+                        cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
+                                          give_velocity=give_velocity, geometry=tuple(geometries),
+                                          nominal=tuple(nominals)))
+    return cells
+
+
+def _search_cell(job: tuple[dict[str, Any], int, int, str]) -> list[Found]:
+    cell, episodes, seed, optimiser = job
+    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
+    return search(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)
+
+
+def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found], dict[str, dict[str, Any]]]:
+    """Every episode found, and a summary per robot and filter; prints a line per cell as it finishes."""
+    everything: list[Found] = []
+    summary: dict[str, dict[str, Any]] = {}
+    for index, (cell, found) in enumerate(zip(cells, results, strict=True)):
+        everything.extend(found)
+        key = f"{cell['robot']}/{cell['filter_name']}"
+        entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
+                                             worst_clearance_minus_margin=math.inf))
+        for item in found:
+            entry["episodes"] += 1
+            if item.outcome.valid:
+                entry["valid"] += 1
+                entry["contacts"] += int(item.outcome.contact)
+                entry["violations"] += int(item.outcome.violated)
+                entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
+                                                            item.outcome.min_clearance - item.outcome.margin)
+        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal")}
+        print(f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m",
+              flush=True)
+    return everything, summary
+
+
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", type=int, default=2000, help="episodes in all (spread over the cells)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--robots", nargs="+", default=["rosbot", "puzzlebot", "m2wr"])
+    parser.add_argument("--filters", nargs="+", default=["cbf", "mpc"])
+    parser.add_argument("--bases", nargs="+", default=list(BASES), choices=BASES)
+    parser.add_argument("--dts", nargs="+", type=float, default=[0.02, 0.05, 0.1])
+    parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
+    parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
+    parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
+    parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
+    parser.add_argument("--workers", type=int, default=1, help="processes searching cells in parallel")
+    parser.add_argument("--json", help="write the summary and the worst cases here")
+    parser.add_argument("--replay", help="replay one episode given as the JSON line printed by a search")
+    args = parser.parse_args(argv)
+    if args.replay:
+        outcome, log = run(Episode.from_json(args.replay), record=True)
+        for row in log:
+            print(f"{row['step']:4d} t={row['t']:.2f} u_nom={np.round(row['u_nom'], 3)} u={np.round(row['u'], 3)} "
+                  f"{row['status']:10s} H={row['min_barrier']:.4f} clearance={row['clearance']:.4f} "
+                  f"{row['message']}")
+        print(outcome)
+        return 0 if not outcome.violated else 1
+    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals)
+    per_cell = max(1, args.episodes // len(cells))
+    start = time.perf_counter()
+    jobs = [(cell, per_cell, args.seed * 100_003 + index, args.optimiser) for index, cell in enumerate(cells)]
+    if args.workers > 1:
+        import multiprocessing
+
+        with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+            results = pool.imap(_search_cell, jobs)
+            everything, summary = _collect(cells, results)
+    else:
+        everything, summary = _collect(cells, map(_search_cell, jobs))
+    elapsed = time.perf_counter() - start
+    print()
+    print("| robot/filter | episodes | valid | contacts | below margin - 1 cm | worst clearance - margin [m] |")
+    print("|---|---|---|---|---|---|")
+    for key, entry in sorted(summary.items()):
+        print(f"| {key} | {entry['episodes']} | {entry['valid']} | {entry['contacts']} | {entry['violations']} | "
+              f"{entry['worst_clearance_minus_margin']:+.4f} |")
+    valid = [f for f in everything if f.outcome.valid]
+    valid.sort(key=lambda f: f.outcome.objective)
+    print(f"\n{len(everything)} episodes in {elapsed:.0f} s; worst cases (replay with --replay '<line>'):")
+    for item in valid[: args.worst]:
+        print(f"{item.outcome.objective:+.4f} m  {item.episode.to_json()}")
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(dict(episodes=len(everything), seconds=elapsed, summary=summary,
+                           worst=[dict(objective=f.outcome.objective, episode=dataclasses.asdict(f.episode))
+                                  for f in valid[: args.worst]]), handle, indent=1)
+    return 1 if any(f.outcome.violated for f in everything) else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,175 @@
+"""The robot's body as the filters see it: one disk, or a cover of the footprint by a few disks.
+
+A barrier on the distance from a point of the body to an obstacle point needs a smooth
+distance, and a disk gives one. :class:`BodyModel` describes the body as disks in the
+base frame (REP-103, x forward):
+
+* ``BodyModel.disk(robot)``: the circumscribed disk of radius ``robot.radius`` around the
+  base origin (the classic model; a point of it needs a look-ahead to be steered, since
+  turning in place does not move the origin);
+* ``BodyModel.cover(robot, n)``: ``n`` equal disks whose centres lie along the base x axis
+  (the direction of travel, so that the width the disks add to the footprint's is as small
+  as possible in a door), each the circumscribed disk of one ``1/n`` slice of the
+  footprint's bounding rectangle. Their union contains the footprint, so keeping every disk ``margin`` away from
+  an obstacle point keeps the footprint at least ``margin`` away. Disks off the base origin
+  move sideways when the robot turns, so they steer without any look-ahead.
+
+:meth:`BodyModel.boundary` samples the outline (the footprint polygon when there is one,
+else the disk) with outward normals, for the unknown-region logic
+(:mod:`safenav.filters.perception`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from safenav import _checks
+from safenav.robot import RobotSpec
+
+__all__ = ["BodyModel", "polygon_distance"]
+
+#: Angular spacing of the outline samples [rad] (well below the 5-degree gap bridged by the filters).
+BOUNDARY_STEP = math.radians(2.0)
+
+
+def polygon_distance(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Signed distance from each point to a convex polygon (negative inside) [m].
+
+    Args:
+        polygon: ``(V, 2)`` vertices in order (either orientation) [m].
+        points: ``(N, 2)`` points [m].
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    a = np.asarray(polygon, dtype=float)
+    b = np.roll(a, -1, axis=0)
+    edge = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", edge, edge), 1e-300)
+    relative = points[:, None, :] - a[None, :, :]
+    t = np.clip(np.einsum("nvi,vi->nv", relative, edge) / length2, 0.0, 1.0)
+    nearest = a[None] + t[..., None] * edge[None]
+    distance = np.min(np.hypot(*(points[:, None, :] - nearest).transpose(2, 0, 1)), axis=1)
+    cross = edge[None, :, 0] * relative[..., 1] - edge[None, :, 1] * relative[..., 0]
+    inside = np.all(cross >= 0.0, axis=1) | np.all(cross <= 0.0, axis=1)
+    return np.where(inside, -distance, distance)
+
+
+@dataclass(frozen=True, eq=False)
+class BodyModel:
+    """The body as disks in the base frame, and its outline.
+
+    Attributes:
+        centres: ``(D, 2)`` disk centres in the base frame [m].
+        radii: ``(D,)`` disk radii [m].
+        outline: ``(V, 2)`` the footprint polygon the disks cover, counter-clockwise [m]
+            (``None`` for the plain disk model, whose outline is its disk).
+        name: ``"disk"`` or ``"cover<n>"``.
+    """
+
+    centres: np.ndarray
+    radii: np.ndarray
+    outline: np.ndarray | None
+    name: str
+
+    @classmethod
+    def disk(cls, robot: RobotSpec) -> BodyModel:
+        """The circumscribed disk of radius ``robot.radius`` around the base origin."""
+        return cls(np.zeros((1, 2)), np.array([robot.radius]), None, "disk")
+
+    @classmethod
+    def cover(cls, robot: RobotSpec, n_disks: int) -> BodyModel:
+        """``n_disks`` equal disks along the base x axis that cover the footprint's bounding rectangle.
+
+        A robot without a footprint (a round robot) keeps its disk.
+        """
+        n_disks = _checks.integer("n_disks", n_disks, low=1, high=16)
+        if robot.footprint is None:
+            return cls.disk(robot)
+        polygon = _counter_clockwise(np.asarray(robot.footprint, dtype=float))
+        low, high = polygon.min(axis=0), polygon.max(axis=0)
+        size = high - low
+        axis = 0
+        slices = (np.arange(n_disks) + 0.5) / n_disks
+        centres = np.tile(0.5 * (low + high), (n_disks, 1))
+        centres[:, axis] = low[axis] + slices * size[axis]
+        half = 0.5 * size.copy()
+        half[axis] = 0.5 * size[axis] / n_disks
+        radius = float(np.hypot(*half))
+        return cls(centres, np.full(n_disks, radius), polygon, f"cover{n_disks}")
+
+    @property
+    def n_disks(self) -> int:
+        return int(self.radii.size)
+
+    @property
+    def reach(self) -> float:
+        """Largest distance from the base origin to any point of the disks [m]."""
+        return float(np.max(np.hypot(self.centres[:, 0], self.centres[:, 1]) + self.radii))
+
+    def clearance(self, points: np.ndarray) -> float:
+        """Smallest distance from the disks to ``points`` ``(N, 2)`` [m] (``inf`` without points)."""
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        if points.shape[0] == 0:
+            return math.inf
+        gaps = np.hypot(points[:, None, 0] - self.centres[None, :, 0],
+                        points[:, None, 1] - self.centres[None, :, 1]) - self.radii[None, :]
+        return float(gaps.min())
+
+    def outline_clearance(self, points: np.ndarray) -> float:
+        """Smallest distance from the outline (footprint polygon, or the disk) to ``points`` [m]."""
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        if points.shape[0] == 0:
+            return math.inf
+        if self.outline is None:
+            return self.clearance(points)
+        return float(polygon_distance(self.outline, points).min())
+
+    def boundary(self) -> tuple[np.ndarray, np.ndarray]:
+        """Samples of the outline and their outward unit normals, ``(S, 2)`` each [m]."""
+        return _boundary(self.outline.tobytes() if self.outline is not None else b"",
+                         float(self.radii[0]) if self.outline is None else 0.0)
+
+    def area_excess(self) -> float:
+        """Area of the disks' union outside the outline, as a fraction of the outline's area."""
+        if self.outline is None:
+            return 0.0
+        low = np.minimum(self.outline.min(axis=0), (self.centres - self.radii[:, None]).min(axis=0))
+        high = np.maximum(self.outline.max(axis=0), (self.centres + self.radii[:, None]).max(axis=0))
+        step = 0.002
+        xs = np.arange(low[0], high[0], step) + 0.5 * step
+        ys = np.arange(low[1], high[1], step) + 0.5 * step
+        grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        in_disks = np.any(np.hypot(grid[:, None, 0] - self.centres[None, :, 0],
+                                   grid[:, None, 1] - self.centres[None, :, 1]) <= self.radii[None], axis=1)
+        in_outline = polygon_distance(self.outline, grid) <= 0.0
+        return float(np.count_nonzero(in_disks & ~in_outline)) / max(float(np.count_nonzero(in_outline)), 1.0)
+
+
+def _counter_clockwise(polygon: np.ndarray) -> np.ndarray:
+    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    return polygon[::-1].copy() if area2 < 0 else polygon.copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _boundary(outline_bytes: bytes, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    if not outline_bytes:
+        angles = np.arange(0.0, 2.0 * math.pi, BOUNDARY_STEP)
+        normals = np.column_stack((np.cos(angles), np.sin(angles)))
+        points, normals = radius * normals, normals
+    else:
+        polygon = np.frombuffer(outline_bytes, dtype=float).reshape(-1, 2)
+        pieces, piece_normals = [], []
+        for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+            edge = b - a
+            length = float(np.hypot(*edge))
+            count = max(2, math.ceil(length / 0.01))
+            t = (np.arange(count) + 0.5) / count
+            pieces.append(a + t[:, None] * edge)
+            piece_normals.append(np.tile(np.array([edge[1], -edge[0]]) / length, (count, 1)))
+        points, normals = np.vstack(pieces), np.vstack(piece_normals)
+    for array in (points, normals):
+        array.flags.writeable = False
+    return points, normals

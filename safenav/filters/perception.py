@@ -1,0 +1,363 @@
+"""From scans to what the filters constrain: obstacle points, the unknown region, and a memory.
+
+Shared by every filter, so the CBF and the MPC see the same world:
+
+* :func:`obstacle_beams` / :func:`beam_points`: every obstacle point of a scan in the base
+  frame (REP-117: ``HIT`` at its range; ``TOO_CLOSE`` as close as it can be without having
+  hit the body).
+* :func:`unknown_region`: which parts of the body's outline face space that no current beam
+  of any source covers, and which motions they forbid. Computed from the body and each
+  lidar's mount, not from a laser origin: a sample of the outline is *covered* when some
+  source's field of view contains it and the beams towards it are informative. Outline
+  samples outside every field of view (*blind* samples: beside and behind a front-mounted
+  180-degree lidar) forbid translating the body towards them unless the space ahead of them
+  in that direction comes into view within the body's size (the strip beside the m2wr's
+  body, which forward motion sweeps: what is in it was seen before it got there, or was
+  there at the start; see :class:`PointMemory` and ``docs/safety.md``). Outline samples in
+  a field of view but behind a run of invalid beams wider than ``max_gap`` (*gap* samples)
+  forbid every motion of the outline towards them, turning included.
+* :class:`PointMemory`: obstacle points that leave the field of view are carried in the base
+  frame by odometry and stay obstacles while the body can reach them and no current beam
+  contradicts them (not for a fixed time).
+* :func:`nearest_per_bin`: a working set, the point with the smallest key per angular bin.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from safenav.filters.body import BodyModel
+from safenav.geometry import TWO_PI, Pose2D
+from safenav.scan import LaserScan, Reading
+
+__all__ = [
+    "START_BLIND_CLEARANCE",
+    "Frontier",
+    "PointMemory",
+    "beam_points",
+    "body_clearance",
+    "nearest_per_bin",
+    "obstacle_beams",
+    "unknown_beams",
+    "unknown_region",
+]
+
+#: Distance outside the outline at which coverage is tested [m].
+OUTLINE_OFFSET = 1e-3
+
+START_BLIND_CLEARANCE = 0.5
+"""The start assumption [m]: when a filter starts (or is reset), nothing lies within this distance
+of the body in directions no lidar's field of view covers (the strip beside and the space behind a
+front-mounted 180-degree lidar). The filter cannot know what is there until it has seen it; from
+then on everything it saw is remembered. ``benchmarks/falsify.py`` starts only inside it."""
+
+
+def body_clearance(points: np.ndarray, body_radius: float) -> float:
+    """Distance from the base origin to the nearest of ``points`` minus ``body_radius`` [m] (inf if none)."""
+    return float(np.hypot(points[:, 0], points[:, 1]).min()) - body_radius if len(points) else math.inf
+
+
+def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Beams that give an obstacle point, and the range to put it at [m], for a body of ``body_radius``.
+
+    ``HIT`` beams keep their range. A ``TOO_CLOSE`` beam (``-inf``) says an object is closer
+    than ``range_min``, maybe touching the body: it is put where the beam leaves the disk of
+    ``body_radius`` around the base origin, or at ``range_min`` if that is nearer. A filter
+    then sees the robot as inside its margin and backs out of the lidar's blind zone instead
+    of trusting a clearance it cannot measure (a lidar whose ``range_min`` exceeds the body
+    radius plus the margin cannot see the margin).
+    """
+    index, ranges = scan.obstacle_beams()
+    too_close = scan.ranges[index] == -math.inf
+    if too_close.any():
+        geometry = scan.geometry
+        mx, my = scan.mount.x, scan.mount.y
+        cos, sin = geometry.cos_base[index[too_close]], geometry.sin_base[index[too_close]]
+        along = mx * cos + my * sin
+        inside = body_radius**2 - (mx * mx + my * my)
+        if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
+            exit_range = -along + np.sqrt(along**2 + inside)
+            ranges[too_close] = np.minimum(ranges[too_close], exit_range)
+    return index, ranges
+
+
+def beam_points(scans: tuple[LaserScan, ...], body_radius: float, max_distance: float = math.inf
+                ) -> np.ndarray:
+    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m].
+
+    With ``max_distance``, beams whose point cannot be within ``max_distance`` of the base
+    origin (range beyond ``max_distance + |mount|``) are skipped before any trigonometry.
+    """
+    pieces = []
+    for scan in scans:
+        index, ranges = obstacle_beams(scan, body_radius)
+        if math.isfinite(max_distance):
+            keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
+            index, ranges = index[keep], ranges[keep]
+        pieces.append(scan.beam_points(index, ranges))
+    return np.vstack(pieces) if pieces else np.empty((0, 2))
+
+
+def unknown_beams(scan: LaserScan, max_gap: float) -> np.ndarray:
+    """Mask of the beams inside a run of ``INVALID`` readings wider than ``max_gap`` [rad].
+
+    Shorter runs are bridged by their neighbours, like the gap between any two beams. Each
+    beam covers half an increment either side; a full-turn scan's runs wrap round.
+    """
+    invalid = scan.readings == Reading.INVALID
+    if not invalid.any():
+        return np.zeros(scan.n_beams, dtype=bool)
+    if invalid.all():
+        return np.ones(scan.n_beams, dtype=bool)
+    wraps = scan.field_of_view >= TWO_PI - 1e-9
+    shift = int(np.argmin(invalid)) if wraps else 0   # start the walk at an informative beam
+    walk = np.roll(invalid, -shift)
+    edges = np.diff(np.concatenate(([False], walk, [False])).astype(np.int8))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    mask = np.zeros(scan.n_beams, dtype=bool)
+    for begin, end in zip(starts, stops, strict=True):
+        if (end - begin) * scan.angle_increment > max_gap:
+            mask[begin:end] = True
+    return np.roll(mask, shift)
+
+
+class Frontier(NamedTuple):
+    """What part of the outline faces unknown space, and the motions that forbids.
+
+    Attributes:
+        points: ``(K, 2)`` outline samples facing a gap (a run of invalid beams) [m].
+        normals: ``(K, 2)`` their outward normals; no point of the outline may move along them.
+        forward: some blind outline sample forbids translating forward (``v > 0``).
+        backward: some blind outline sample forbids translating backward (``v < 0``).
+        gap_forward: some gap sample (beyond the side tolerance) is approached by ``v > 0``.
+        gap_backward: likewise by ``v < 0``.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    forward: bool
+    backward: bool
+    gap_forward: bool
+    gap_backward: bool
+
+    @property
+    def blocks_forward(self) -> bool:
+        return self.forward or self.gap_forward
+
+    @property
+    def blocks_backward(self) -> bool:
+        return self.backward or self.gap_backward
+
+
+@dataclass(frozen=True, eq=False)
+class _Layout:
+    """Per source, which beam each outline sample falls on (-1 outside the field of view)."""
+
+    beams: tuple[np.ndarray, ...]
+    blind_forward: bool
+    blind_backward: bool
+
+
+def _layout_key(scan: LaserScan) -> tuple[float, float, int, float, float, float]:
+    return (scan.angle_min, scan.angle_increment, scan.n_beams, scan.mount.x, scan.mount.y, scan.mount.yaw)
+
+
+@functools.lru_cache(maxsize=64)
+def _layout(keys: tuple[tuple[float, float, int, float, float, float], ...], body_key: bytes, radius: float,
+            side_tolerance: float, depth: float) -> _Layout:
+    """Static coverage of the outline samples by the sources' fields of view (cached per layout)."""
+    outline = np.frombuffer(body_key, dtype=float).reshape(-1, 2) if body_key else None
+    body = BodyModel(np.zeros((1, 2)), np.array([radius]), outline, "key")
+    points, normals = body.boundary()
+    probe = points + OUTLINE_OFFSET * normals
+
+    def beam_of(key: tuple[float, float, int, float, float, float], where: np.ndarray) -> np.ndarray:
+        angle_min, increment, n_beams, mx, my, myaw = key
+        bearing = np.arctan2(where[:, 1] - my, where[:, 0] - mx) - myaw - angle_min
+        offset = np.mod(bearing + 0.5 * increment, TWO_PI) - 0.5 * increment
+        index = np.floor(offset / increment + 0.5).astype(np.intp)
+        inside = (index >= 0) & (index < n_beams) & (np.abs(offset - index * increment) <= 0.5 * increment + 1e-12)
+        return np.where(inside, index, -1)
+
+    beams = tuple(beam_of(key, probe) for key in keys)
+    blind = np.all(np.stack([b < 0 for b in beams]), axis=0)
+    threshold = math.sin(side_tolerance)
+    steps = np.linspace(0.0, depth, 16)[1:]
+
+    def comes_into_view(direction: float) -> np.ndarray:
+        """Whether the space ahead of each blind sample (along ``direction`` x) enters a field of view."""
+        seen = np.zeros(len(points), dtype=bool)
+        for step in steps:
+            ahead = probe + np.array([direction * step, 0.0])
+            seen |= np.any(np.stack([beam_of(key, ahead) >= 0 for key in keys]), axis=0)
+        return seen
+
+    forward = bool(np.any(blind & (normals[:, 0] > threshold) & ~comes_into_view(1.0)))
+    backward = bool(np.any(blind & (normals[:, 0] < -threshold) & ~comes_into_view(-1.0)))
+    for array in beams:
+        array.flags.writeable = False
+    return _Layout(beams, forward, backward)
+
+
+def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float, side_tolerance: float
+                   ) -> Frontier:
+    """The parts of the body's outline that face unknown space, and the motions they forbid.
+
+    Args:
+        scans: the sources, each in the base frame through its mount.
+        body: the body model (its outline is sampled).
+        max_gap: widest run of invalid beams bridged by its neighbours [rad].
+        side_tolerance: outline samples whose outward normal is within this angle of
+            sideways do not forbid translation [rad].
+    """
+    outline = body.outline
+    layout = _layout(tuple(_layout_key(scan) for scan in scans), outline.tobytes() if outline is not None else b"",
+                     float(body.radii[0]) if outline is None else 0.0, side_tolerance, body.reach)
+    points, normals = body.boundary()
+    covered = np.zeros(len(points), dtype=bool)
+    in_view = np.zeros(len(points), dtype=bool)
+    for scan, beams in zip(scans, layout.beams, strict=True):
+        seen = beams >= 0
+        in_view |= seen
+        if scan.n_informative == scan.n_beams:
+            covered |= seen
+            continue
+        unknown = unknown_beams(scan, max_gap)
+        covered |= seen & ~unknown[np.maximum(beams, 0)]
+    gap = in_view & ~covered
+    threshold = math.sin(side_tolerance)
+    return Frontier(points[gap], normals[gap], layout.blind_forward, layout.blind_backward,
+                    bool(np.any(normals[gap, 0] > threshold)), bool(np.any(normals[gap, 0] < -threshold)))
+
+
+# ---------------------------------------------------------------------------------------------- memory
+
+
+class PointMemory:
+    """Obstacle points carried in the base frame by odometry while the body can still reach them.
+
+    After each call the memory holds the obstacle points of the call's scans within
+    ``max_range`` of the base origin, plus the remembered points no scan saw again. At the
+    next call everything is moved into the new base frame by the motion since then; a
+    remembered point is dropped when a current beam covers its direction and reads farther
+    (the space is seen to be free: contradicted) or about as far (the scan shows it again),
+    and kept when the beams towards it are invalid, outside every field of view, or read
+    nearer (occluded). Each carry adds the odometry's uncertainty to the point's
+    ``uncertainty`` [m], which the filters add to their margin for that point. Beyond
+    ``capacity`` points the farthest are forgotten first.
+
+    Args:
+        max_range: points farther than this from the base origin are forgotten [m].
+        capacity: largest number of points kept.
+    """
+
+    def __init__(self, max_range: float, capacity: int) -> None:
+        self.max_range = float(max_range)
+        self.capacity = int(capacity)
+        self.points = np.empty((0, 2))
+        self.uncertainty = np.empty(0)
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+    def clear(self) -> None:
+        """Forget everything (a reset, or a scan that cannot be trusted)."""
+        self.points = np.empty((0, 2))
+        self.uncertainty = np.empty(0)
+
+    def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Move the points into the new base frame, which is at ``motion`` in the old one.
+
+        Args:
+            motion: the pose of the new base frame in the old one [m, m, rad].
+            uncertainty_rate: odometry error bound ``(e_translation [m], e_rotation [rad])`` of
+                this motion; a point at distance ``d`` gains ``e_translation + d e_rotation``.
+        """
+        if self.points.shape[0] == 0:
+            return
+        distance = np.hypot(self.points[:, 0], self.points[:, 1])
+        self.points = motion.to_local(self.points)
+        self.uncertainty = self.uncertainty + uncertainty_rate[0] + distance * uncertainty_rate[1]
+        keep = np.hypot(self.points[:, 0], self.points[:, 1]) <= self.max_range + self.uncertainty
+        self.points, self.uncertainty = self.points[keep], self.uncertainty[keep]
+
+    def recall(self, scans: tuple[LaserScan, ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+        """The remembered points no current beam sees again or contradicts, and their uncertainty.
+
+        Args:
+            scans: the current scans (base frame).
+            tolerance: range difference within which a reading shows a remembered point again [m]
+                (beyond it, a farther reading contradicts it); the point's own uncertainty is added.
+        """
+        points, uncertainty = self.points, self.uncertainty
+        if points.shape[0] == 0:
+            return points, uncertainty
+        keep = np.ones(points.shape[0], dtype=bool)
+        for scan in scans:
+            keep &= ~_seen_again(scan, points, tolerance + uncertainty)
+        return points[keep], uncertainty[keep]
+
+    def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
+        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity."""
+        points = np.vstack((current, recalled))
+        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+        distance = np.hypot(points[:, 0], points[:, 1])
+        keep = distance <= self.max_range
+        points, uncertainty, distance = points[keep], uncertainty[keep], distance[keep]
+        if points.shape[0] > self.capacity:
+            order = np.argsort(distance, kind="stable")[: self.capacity]
+            points, uncertainty = points[order], uncertainty[order]
+        self.points, self.uncertainty = points, uncertainty
+
+
+def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
+    """Mask of ``points`` whose direction ``scan`` covers with a reading that shows or contradicts them.
+
+    The beam nearest a point's direction sees it again when it is informative and reads no
+    nearer than the point minus ``tolerance``: about its range (the point is there and the
+    scan carries it now) or farther (the space is free). A nearer reading occludes it,
+    ``-inf`` too; ``INVALID`` readings and directions outside the field of view say nothing.
+    (A remembered object narrower than the gap between two beams can be missed by the
+    nearest beam, as by any scan: the margin covers the beam gap, ``docs/safety.md``.)
+    """
+    mount = scan.mount
+    dx, dy = points[:, 0] - mount.x, points[:, 1] - mount.y
+    increment = scan.angle_increment
+    offset = np.mod(np.arctan2(dy, dx) - mount.yaw - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
+    index = np.floor(offset / increment + 0.5).astype(np.intp)
+    inside = (index >= 0) & (index < scan.n_beams)
+    safe = np.clip(index, 0, scan.n_beams - 1)
+    reading = scan.readings[safe]
+    informative = (reading == Reading.HIT) | (reading == Reading.NO_RETURN)
+    value = np.where(reading == Reading.NO_RETURN, scan.range_max, scan.ranges[safe])
+    return inside & informative & (value >= np.hypot(dx, dy) - tolerance)
+
+
+def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int) -> np.ndarray:
+    """Indices of the point with the smallest key in each angular bin around ``centre``.
+
+    Args:
+        points: ``(N, 2)`` points [m].
+        keys: ``(N,)`` values to minimise per bin (e.g. barrier values).
+        centre: the point the bins are centred on [m].
+        n_bins: number of equal bins over the full turn.
+
+    Returns:
+        Indices into ``points``, in increasing key order.
+    """
+    if len(points) == 0:
+        return np.empty(0, dtype=np.intp)
+    angles = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
+    bins = ((angles + math.pi) * (n_bins / TWO_PI)).astype(np.intp) % n_bins
+    order = np.lexsort((keys, bins))
+    sorted_bins = bins[order]
+    first = np.empty(order.size, dtype=bool)
+    first[0] = True
+    np.not_equal(sorted_bins[1:], sorted_bins[:-1], out=first[1:])
+    chosen = order[first]
+    return chosen[np.argsort(keys[chosen], kind="stable")]

@@ -1,0 +1,321 @@
+"""Constraint families of the CBF filter: each one a small function returning rows ``G z <= h``.
+
+The QP's variables are ``z = (v, omega, t_v, t_omega)``: the command [m/s, rad/s] and two
+auxiliaries bounded below by ``|v|`` and ``|omega|`` (and by the current velocity's
+magnitudes), through which the arc of a period enters the rows exactly. Every family
+returns a :class:`Rows` block: the rows, the obstacle point behind each row (``-1`` when
+none), the family's name, and whether the rows are *hard*. Only soft rows (obstacle
+barriers and the braking rows derived from them) may ever be relaxed by a slack variable;
+hard rows (the unknown region, the auxiliaries) never are: a command that cannot satisfy
+them is not sent, the base brakes at its limits instead.
+
+Each family states the invariant it guarantees, under which assumption, in its docstring;
+``tests/filters/test_rows.py`` checks each one alone with hypothesis.
+
+Notation: obstacle points ``o`` (base frame [m]); body disks ``j`` with control points
+``p_j = c_j + (l, 0)`` (disk centre plus the look-ahead ``l``); barrier
+``h_j(o) = ||p_j - o|| - (rho_j + l + margin + e_o)`` with ``e_o`` the point's position
+uncertainty; ``n_j(o) = (p_j - o) / ||p_j - o||``. The base-frame velocity of ``p_j`` for a
+command ``(v, omega)`` is ``J_j (v, omega)`` with ``J_j = [[1, -p_y], [0, p_x]]``, so the
+rate at which ``p_j`` approaches ``o`` is ``a_j(o) . (v, omega)`` with
+``a_j(o) = -J_j^T n_j(o)``. All rows are divided by the period (units of m/s).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "FAMILIES",
+    "Geometry",
+    "Rows",
+    "abs_rows",
+    "barrier_rows",
+    "blind_rows",
+    "braking_rows",
+    "gap_rows",
+    "geometry",
+    "ramp_corners",
+    "stack",
+    "stopping_speed",
+    "sweep_rows",
+]
+
+FAMILIES = ("barrier", "braking", "sweep", "gap", "blind", "abs")
+"""Row family names, in the order :func:`stack` keeps them."""
+HARD_FAMILIES = frozenset({"gap", "blind", "abs"})
+"""Families that slack never relaxes."""
+
+
+class Rows(NamedTuple):
+    """A block of rows ``G z <= h`` and where each comes from."""
+
+    G: np.ndarray
+    """``(k, 4)`` coefficients over ``z = (v, omega, t_v, t_omega)``."""
+    h: np.ndarray
+    """``(k,)`` right-hand sides [m/s]."""
+    point: np.ndarray
+    """``(k,)`` index of the obstacle point behind each row, ``-1`` when none."""
+    family: np.ndarray
+    """``(k,)`` index into :data:`FAMILIES` of each row."""
+
+    @property
+    def hard(self) -> np.ndarray:
+        """``(k,)`` mask of the rows slack may never relax."""
+        return np.isin(self.family, [FAMILIES.index(name) for name in HARD_FAMILIES])
+
+    def __len__(self) -> int:
+        return int(self.h.size)
+
+    def take(self, mask: np.ndarray) -> Rows:
+        return Rows(self.G[mask], self.h[mask], self.point[mask], self.family[mask])
+
+
+def _rows(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: str) -> Rows:
+    return Rows(G, h, point, np.full(h.size, FAMILIES.index(family), dtype=np.intp))
+
+
+def stack(*blocks: Rows) -> Rows:
+    """One block of all the rows of ``blocks``."""
+    blocks = tuple(block for block in blocks if len(block))
+    if not blocks:
+        return Rows(np.empty((0, 4)), np.empty(0), np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    return Rows(np.vstack([b.G for b in blocks]), np.concatenate([b.h for b in blocks]),
+                np.concatenate([b.point for b in blocks]), np.concatenate([b.family for b in blocks]))
+
+
+class Geometry(NamedTuple):
+    """Point-disk pairs of one call: barrier values and approach directions.
+
+    Pairs are flattened point-major: pair ``k`` is point ``k // D`` and disk ``k % D``.
+    """
+
+    point: np.ndarray
+    """``(K,)`` obstacle point index of each pair."""
+    barrier: np.ndarray
+    """``(K,)`` barrier value ``h_j(o)`` [m]."""
+    approach: np.ndarray
+    """``(K, 2)`` ``a_j(o)``: the approach rate of the pair is ``approach . (v, omega)`` [1, m]."""
+    arc: np.ndarray
+    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``."""
+    bearing: np.ndarray
+    """``(K,)`` direction of the point from the control point, relative to the heading [rad]."""
+
+
+def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+             lookahead: float, margin: float, kappa: float) -> Geometry:
+    """Barrier values and approach directions of every point against every body disk.
+
+    Args:
+        points: ``(N, 2)`` obstacle points, base frame [m].
+        uncertainty: ``(N,)`` position uncertainty of each point [m] (added to the margin).
+        centres: ``(D, 2)`` body disk centres [m].
+        radii: ``(D,)`` body disk radii [m].
+        lookahead: look-ahead distance ``l`` of the control points [m].
+        margin: clearance kept between the disks and every point [m].
+        kappa: arc coefficient ``omega_max dt / 2`` (see :func:`barrier_rows`).
+    """
+    control = centres + np.array([lookahead, 0.0])
+    dx = control[None, :, 0] - points[:, None, 0]
+    dy = control[None, :, 1] - points[:, None, 1]
+    distance = np.hypot(dx, dy)
+    degenerate = distance < 1e-9
+    if degenerate.any():   # a point exactly at a control point: push it back along -x
+        dx, dy, distance = np.where(degenerate, 1.0, dx), np.where(degenerate, 0.0, dy), np.where(degenerate, 1.0,
+                                                                                                    distance)
+    nx, ny = dx / distance, dy / distance
+    barrier = np.where(degenerate, 0.0, distance) - (radii[None, :] + lookahead + margin + uncertainty[:, None])
+    px, py = control[None, :, 0], control[None, :, 1]
+    approach = np.stack((-nx, nx * py - ny * px), axis=-1).reshape(-1, 2)
+    reach = np.hypot(control[:, 0], control[:, 1])
+    arc = np.column_stack((np.full(control.shape[0], kappa), kappa * reach))
+    count, disks = distance.shape
+    bearing = np.arctan2(-dy, -dx).reshape(-1)
+    return Geometry(np.repeat(np.arange(count), disks), barrier.reshape(-1), approach,
+                    np.tile(arc, (count, 1)), bearing)
+
+
+def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
+    block = np.empty((int(np.count_nonzero(keep)) if keep.dtype == bool else keep.size, 4))
+    block[:, :2] = geo.approach[keep]
+    block[:, 2:] = geo.arc[keep]
+    return block
+
+
+def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, smallest: float | None = None) -> Rows:
+    """The discrete-time barrier condition, one row per point-disk pair (soft).
+
+    Invariant: if every row holds for the mean velocity of the period, then
+    ``h_j(o, x+) >= (1 - gamma) H(x)`` for every pair (``H`` the smallest barrier now), and,
+    with ``far_gamma < 1``, ``h_j(o, x+) >= (1 - far_gamma) h_j(o, x)`` for pairs outside
+    the margin. Hence ``H(x+) >= (1 - gamma) H(x)``: ``H >= 0`` is invariant.
+
+    Why: ``||.||`` is convex, so ``h(x+) >= h(x) + n . delta`` for the displacement
+    ``delta`` of the control point, and the exact displacement of a unicycle holding a
+    velocity for ``dt`` differs from ``dt J w`` by at most ``kappa dt (|v| + ||p|| |omega|)``
+    with ``kappa = omega_max dt / 2`` (the heading turns by at most ``omega_max t``). The row
+    ``a . w + kappa (t_v + ||p|| t_omega) <= (h - (1 - gamma) H) / dt`` is that bound.
+
+    Assumption: the world is static over the period, the points are where the scan says
+    (within the margin's noise allowance), and the base's velocity over the period has the
+    mean ``w`` the row is written for (see :func:`ramp_corners`).
+
+    ``smallest`` is ``H`` over every pair (default: over the pairs of ``geo``), so rows can be
+    built for a subset of the pairs.
+    """
+    barrier = geo.barrier
+    if smallest is None:
+        smallest = float(barrier.min()) if barrier.size else math.inf
+    rhs = barrier - (1.0 - gamma) * smallest
+    if far_gamma < 1.0:
+        rhs = np.where(barrier > 0.0, np.minimum(rhs, far_gamma * barrier), rhs)
+    everything = np.ones(barrier.size, dtype=bool)
+    return _rows(_approach_block(geo, everything), rhs / dt, geo.point, "barrier")
+
+
+def stopping_speed(barrier: np.ndarray, accel: float, reaction: float) -> np.ndarray:
+    """Largest approach speed [m/s] from which a base stops within ``barrier`` [m].
+
+    It reacts for ``reaction`` [s] (one period plus the base's lag), then brakes at
+    ``accel`` [m/s^2]: ``s reaction + s^2 / (2 accel) <= barrier``.
+    """
+    reach = np.maximum(barrier, 0.0)
+    return np.sqrt((accel * reaction) ** 2 + 2.0 * accel * reach) - accel * reaction
+
+
+def braking_rows(geo: Geometry, accel: float, reaction: float) -> Rows:
+    """Approach speed caps that keep braking possible, one row per pair (soft; needs the velocity).
+
+    Invariant: the approach rate of every control point towards every point stays below the
+    speed from which the base, reacting for one period and its lag and then braking at
+    ``a_max``, stops within that pair's barrier. With the rows holding at every period the
+    braking command remains available: a base that approaches a point head-on at
+    ``s`` with ``s reaction + s^2 / (2 a) <= h`` and brakes keeps satisfying the cap.
+
+    Assumption: the base decelerates at ``a_max`` once commanded to, after at most
+    ``reaction`` = one period plus its lag time constant.
+    """
+    everything = np.ones(geo.barrier.size, dtype=bool)
+    return _rows(_approach_block(geo, everything), stopping_speed(geo.barrier, accel, reaction), geo.point,
+                 "braking")
+
+
+def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, dt: float, reaction: float
+               ) -> Rows:
+    """Speed caps along the heading for points the heading can still swing towards (soft; needs the velocity).
+
+    While the base brakes its heading keeps turning, by at most
+    ``Delta = (|omega| + alpha dt)(|v| / a + reaction)``. A point within ``Delta`` of the
+    heading (or of the reverse heading) may come to lie straight ahead before the base
+    stops, so the speed along the heading is capped as if the base already faced it:
+    ``sign v cos(max(|bearing| - Delta, 0)) + arc terms <= stopping_speed(h)``.
+
+    Assumption: as :func:`braking_rows`; the yaw rate decelerates at ``alpha_max``.
+    """
+    sweep = (abs(velocity[1]) + alpha * dt) * (abs(velocity[0]) / accel + reaction)
+    limit = stopping_speed(geo.barrier, accel, reaction)
+    blocks = []
+    for sign, off_axis in ((1.0, np.abs(geo.bearing)), (-1.0, math.pi - np.abs(geo.bearing))):
+        effective = np.maximum(off_axis - sweep, 0.0)
+        inside = np.flatnonzero(effective < 0.5 * math.pi - 1e-6)
+        G = np.zeros((inside.size, 4))
+        G[:, 0] = sign * np.cos(effective[inside])
+        G[:, 2:] = geo.arc[inside]
+        blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
+    return stack(*blocks)
+
+
+def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float) -> Rows:
+    """The rows written for every mean velocity a base between ``velocity`` and the command can have.
+
+    Over a period the base's velocity moves from ``velocity`` (``w0``) towards the command
+    ``u``; its mean is ``u + B (w0 - u)`` with ``B = diag(b_v, b_omega)``, ``b in [0, lag]``
+    (``lag`` = 1/2 for a base that reaches the command within the period, linearly or at
+    its acceleration limit; ``(tau / dt)(1 - exp(-dt / tau))`` for a first-order lag of time
+    constant ``tau``). Rows are linear in the mean, so holding at the four corners
+    ``b in {0, lag}^2`` they hold for every such base. Without a velocity only ``B = 0``.
+    """
+    if velocity is None or lag <= 0.0 or not len(rows):
+        return rows
+    blocks = [rows]
+    for b_v, b_omega in ((lag, 0.0), (0.0, lag), (lag, lag)):
+        G = rows.G.copy()
+        G[:, 0] *= 1.0 - b_v
+        G[:, 1] *= 1.0 - b_omega
+        h = rows.h - (rows.G[:, 0] * b_v * velocity[0] + rows.G[:, 1] * b_omega * velocity[1])
+        blocks.append(Rows(G, h, rows.point, rows.family))
+    return stack(*blocks)
+
+
+def _cone(G: np.ndarray) -> np.ndarray:
+    """The rows ``g . (v, omega) <= 0`` that matter among ``G`` ``(k, 2)``: at most the two extreme ones.
+
+    ``{u : g_k . u <= 0}`` is the polar of the cone the ``g_k`` span; if they span a
+    half-plane or more, only ``u = 0`` is left, which the two rows ``+-g`` of any ``g``
+    with the largest spread also leave (together with the bounds).
+    """
+    norms = np.hypot(G[:, 0], G[:, 1])
+    G = G[norms > 1e-12] / norms[norms > 1e-12, None]
+    if G.shape[0] <= 2:
+        return G
+    angles = np.sort(np.arctan2(G[:, 1], G[:, 0]))
+    gaps = np.diff(np.concatenate((angles, angles[:1] + 2.0 * math.pi)))
+    widest = int(np.argmax(gaps))
+    if gaps[widest] <= math.pi:   # the directions span more than a half-plane: only u = 0 (and the axes) remain
+        return np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    first, last = angles[(widest + 1) % angles.size], angles[widest]
+    return np.array([[math.cos(first), math.sin(first)], [math.cos(last), math.sin(last)]])
+
+
+def gap_rows(points: np.ndarray, normals: np.ndarray, side_tolerance: float, reach: float) -> Rows:
+    """No part of the outline moves towards unknown space behind a run of invalid beams (hard).
+
+    Invariant: for every outline sample ``b`` that faces a gap (a run of invalid beams wider
+    than ``max_gap``, see :func:`~safenav.filters.perception.unknown_region`) the command
+    moves ``b`` no further outwards: ``n . (v - omega b_y, omega b_x) <= 0``. Components
+    within ``side_tolerance`` of tangential are tolerated (a translation almost along the
+    outline, or a turn whose outward speed at ``b`` is below ``sin(tol) reach |omega|``).
+
+    Assumption: nothing is known beyond the gap, so nothing may be approached there.
+    """
+    if points.shape[0] == 0:
+        return stack()
+    threshold = math.sin(side_tolerance)
+    translate = np.where(np.abs(normals[:, 0]) > threshold, normals[:, 0], 0.0)
+    turn = -normals[:, 0] * points[:, 1] + normals[:, 1] * points[:, 0]
+    turn = np.where(np.abs(turn) > threshold * reach, turn, 0.0)
+    coefficients = _cone(np.column_stack((translate, turn)))
+    G = np.zeros((coefficients.shape[0], 4))
+    G[:, :2] = coefficients
+    return _rows(G, np.zeros(G.shape[0]), np.full(G.shape[0], -1), "gap")
+
+
+def blind_rows(forward: bool, backward: bool) -> Rows:
+    """No translation towards a side of the body outside every field of view (hard).
+
+    Invariant: ``v <= 0`` when translating forward would sweep outline samples that no
+    lidar sees and whose way ahead does not come into view within the body's size (a
+    180-degree lidar mounted backwards); ``v >= 0`` likewise backwards (the rear of a
+    forward-facing 180-degree lidar). Assumption: unknown space is never free.
+    """
+    G, h = [], []
+    if forward:
+        G.append([1.0, 0.0, 0.0, 0.0])
+        h.append(0.0)
+    if backward:
+        G.append([-1.0, 0.0, 0.0, 0.0])
+        h.append(0.0)
+    G_array = np.array(G, dtype=float).reshape(-1, 4)
+    return _rows(G_array, np.array(h, dtype=float), np.full(len(h), -1), "blind")
+
+
+#: ``|v| <= t_v`` and ``|omega| <= t_omega`` over ``z = (v, omega, t_v, t_omega)``.
+_ABS = np.array([[1.0, 0.0, -1.0, 0.0], [-1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
+
+
+def abs_rows() -> Rows:
+    """``|v| <= t_v``, ``|omega| <= t_omega`` (hard): the auxiliaries bound the command's magnitudes."""
+    return _rows(_ABS.copy(), np.zeros(4), np.full(4, -1), "abs")

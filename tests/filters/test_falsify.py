@@ -1,0 +1,44 @@
+"""The falsifier's short seeded run (the long one is ``python -m benchmarks.falsify``, BENCHMARKS.md)."""
+
+from __future__ import annotations
+
+import pytest
+
+from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, Episode, decode, run, search
+from safenav import preset
+from safenav.filters import make_filter
+
+CELLS = [
+    dict(robot="m2wr", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True),
+    dict(robot="m2wr", filter_name="mpc", base="lag", dt=0.05, give_velocity=True),
+    dict(robot="rosbot", filter_name="cbf", base="instant", dt=0.1, give_velocity=False),
+    dict(robot="puzzlebot", filter_name="mpc", base="ramp", dt=0.02, give_velocity=True),
+]
+
+
+@pytest.mark.parametrize("cell", CELLS, ids=lambda cell: f"{cell['robot']}-{cell['filter_name']}-{cell['base']}")
+def test_short_adversarial_search_finds_no_violation(cell):
+    cell = dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS)
+    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
+    found = search(cell, episodes=16, seed=7, margin=margin)
+    valid = [item for item in found if item.outcome.valid]
+    assert len(valid) >= 4, "the search must mostly start inside the assumptions"
+    worst = min(valid, key=lambda item: item.outcome.objective)
+    assert not any(item.outcome.violated for item in valid), worst.episode.to_json()
+
+
+def test_an_episode_replays_from_its_json_line_exactly():
+    episode = decode([0.3] * 18, robot="m2wr", filter_name="cbf", base="lag", dt=0.05, give_velocity=True,
+                     geometry="poles", nominal="bang_bang", margin=0.04)
+    again = Episode.from_json(episode.to_json())
+    assert again == episode
+    assert run(again)[0] == run(episode)[0]
+
+
+def test_a_naive_robot_is_caught():
+    """The search is not blind: with the filter switched off, the same kind of search finds contacts."""
+    episode = Episode(robot="rosbot", filter="zones", base="ramp_limit", dt=0.05, segments=((0.6, -2.0, 0.6, 2.0),),
+                      nominal="arc", params=(1.0, 0.0), duration=3.0, settings=dict(stop_distance=0.0,
+                                                                                      slowdown_distance=0.0))
+    outcome, _ = run(episode)
+    assert outcome.valid and outcome.violated

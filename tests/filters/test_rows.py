@@ -1,0 +1,170 @@
+"""Each constraint family alone: its invariant, checked with hypothesis over random inputs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from safenav import Pose2D, preset, unicycle_step
+from safenav.filters import rows as families
+from safenav.filters.body import BodyModel
+from safenav.filters.defaults import lag_fraction
+
+DT = 0.05
+finite = dict(allow_nan=False, allow_infinity=False)
+
+
+def body_for(name: str, cover: int) -> BodyModel:
+    robot = preset(name)
+    return BodyModel.cover(robot, cover) if cover > 1 else BodyModel.disk(robot)
+
+
+@st.composite
+def pairs(draw):
+    """Random obstacle points outside the body, a body model, a look-ahead and a command."""
+    robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
+    body = body_for(robot.name, draw(st.integers(1, 4)))
+    lookahead = draw(st.sampled_from([0.0, 0.1]))
+    count = draw(st.integers(1, 20))
+    points = np.array([[draw(st.floats(-3, 3, **finite)), draw(st.floats(-3, 3, **finite))] for _ in range(count)])
+    assume(body.clearance(points) > 0.01)
+    command = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
+    return robot, body, lookahead, points, command
+
+
+def barriers(points: np.ndarray, body: BodyModel, lookahead: float, margin: float, pose: Pose2D) -> np.ndarray:
+    """Every pair's barrier with the base at ``pose`` (points fixed in the start frame)."""
+    local = pose.to_local(points)
+    return families.geometry(local, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, 0.0).barrier
+
+
+@settings(max_examples=600)
+@given(pairs(), st.floats(0.01, 1.0))
+def test_barrier_rows_keep_the_discrete_time_condition_for_the_exact_unicycle(case, gamma):
+    robot, body, lookahead, points, command = case
+    margin = 0.03
+    kappa = 0.5 * robot.omega_max * DT
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, kappa)
+    rows = families.barrier_rows(geo, gamma, 1.0, DT)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    before = geo.barrier.min()
+    after = barriers(points, body, lookahead, margin, unicycle_step(Pose2D(), *command, DT))
+    assert after.min() >= (1.0 - gamma) * before - 1e-9
+
+
+@settings(max_examples=400)
+@given(pairs(), st.floats(0.01, 1.0), st.floats(0.0, 1.0))
+def test_far_gamma_bounds_each_point_loss(case, gamma, far):
+    robot, body, lookahead, points, command = case
+    far = max(far, gamma)
+    kappa = 0.5 * robot.omega_max * DT
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)
+    rows = families.barrier_rows(geo, gamma, far, DT)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    after = barriers(points, body, lookahead, 0.03, unicycle_step(Pose2D(), *command, DT))
+    outside = geo.barrier > 0.0
+    assert np.all(after[outside] >= (1.0 - far) * geo.barrier[outside] - 1e-9)
+
+
+@settings(max_examples=400)
+@given(pairs(), st.floats(0.0, 0.2), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_ramp_corners_cover_every_base_between_the_velocity_and_the_command(case, time_constant, b_v, b_omega):
+    """Rows written at the four corners hold for every mean velocity ``u + B (w0 - u)``, ``B <= lag``."""
+    robot, body, lookahead, points, command = case
+    kappa = 0.5 * robot.omega_max * DT
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)
+    base = families.barrier_rows(geo, 0.2, 1.0, DT)
+    velocity = np.clip(command + np.array([0.07, -0.3]), robot.lower, robot.upper)
+    lag = lag_fraction(DT, time_constant)
+    corners = families.ramp_corners(base, velocity, lag)
+    z = np.concatenate((command, np.maximum(np.abs(command), np.abs(velocity))))
+    assume(np.all(corners.G @ z <= corners.h))
+    mean = command + np.array([b_v, b_omega]) * lag * (velocity - command)
+    z_mean = np.concatenate((mean, z[2:]))
+    assert np.all(base.G @ z_mean <= base.h + 1e-9)
+
+
+@given(st.floats(0.0, 5.0), st.floats(0.1, 3.0), st.floats(0.01, 0.3))
+def test_stopping_speed_stops_within_the_barrier(barrier, accel, reaction):
+    speed = families.stopping_speed(np.array([barrier]), accel, reaction)[0]
+    assert speed >= 0.0
+    assert speed * reaction + speed**2 / (2.0 * accel) <= barrier + 1e-9
+    faster = speed + 1e-3
+    assert faster * reaction + faster**2 / (2.0 * accel) > barrier
+
+
+@settings(max_examples=300)
+@given(st.floats(0.0, 2.0), st.floats(0.2, 3.0), st.floats(0.02, 0.1), st.floats(0.0, 0.1))
+def test_braking_rows_cap_a_head_on_approach_to_one_that_stops_in_time(barrier, accel, dt, lag):
+    """A point straight ahead: any speed the braking row allows stops within the barrier (reaction, then braking)."""
+    centres, radii = np.zeros((1, 2)), np.array([0.2])
+    point = np.array([[0.2 + 0.03 + barrier, 0.0]])
+    geo = families.geometry(point, np.zeros(1), centres, radii, 0.0, 0.03, 0.0)
+    rows = families.braking_rows(geo, accel, dt + lag)
+    allowed = float(rows.h[0] / rows.G[0, 0])   # the row is v * 1 <= h
+    travelled = allowed * (dt + lag) + allowed**2 / (2.0 * accel)
+    assert travelled <= barrier + 1e-9
+
+
+@settings(max_examples=300)
+@given(st.floats(-math.pi, math.pi), st.floats(0.0, 1.0), st.floats(-2.0, 2.0), st.floats(0.2, 2.0))
+def test_sweep_rows_cap_the_speed_towards_points_the_heading_can_swing_to(bearing, speed, turn, distance):
+    robot = preset("rosbot")
+    velocity = np.array([speed, turn])
+    point = np.array([[distance * math.cos(bearing), distance * math.sin(bearing)]])
+    geo = families.geometry(point, np.zeros(1), np.zeros((1, 2)), np.array([robot.radius]), 0.0, 0.03, 0.0)
+    reaction = DT
+    rows = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, DT, reaction)
+    sweep = (abs(turn) + robot.alpha_max * DT) * (speed / robot.a_max + reaction)
+    limit = families.stopping_speed(geo.barrier, robot.a_max, reaction)[0]
+    if abs(bearing) <= sweep:   # the heading may face it before stopping: the forward speed is capped fully
+        forward = rows.take(rows.G[:, 0] > 0)
+        assert len(forward) == 1 and forward.G[0, 0] == 1.0 and forward.h[0] == limit
+    if abs(bearing) >= math.pi / 2 + sweep:   # it cannot come ahead: no forward cap
+        assert not np.any(rows.G[:, 0] > 0)
+
+
+@st.composite
+def outline_samples(draw):
+    body = body_for(draw(st.sampled_from(["rosbot", "m2wr"])), draw(st.integers(1, 3)))
+    points, normals = body.boundary()
+    chosen = draw(st.lists(st.integers(0, len(points) - 1), min_size=1, max_size=12, unique=True))
+    return body, points[chosen], normals[chosen]
+
+
+@settings(max_examples=400)
+@given(outline_samples(), st.floats(-1.0, 1.0), st.floats(-3.0, 3.0), st.floats(0.0, 0.2))
+def test_gap_rows_never_move_the_outline_towards_a_gap(case, v, omega, tolerance):
+    body, points, normals = case
+    rows = families.gap_rows(points, normals, tolerance, body.reach)
+    z = np.array([v, omega, abs(v), abs(omega)])
+    assume(np.all(rows.G @ z <= 0.0))
+    outward = normals[:, 0] * (v - omega * points[:, 1]) + normals[:, 1] * omega * points[:, 0]
+    allowance = math.sin(tolerance) * (abs(v) + body.reach * abs(omega))
+    assert np.all(outward <= 2.0 * allowance + 1e-9)
+
+
+@settings(max_examples=300)
+@given(st.lists(st.tuples(st.floats(-1, 1, **finite), st.floats(-1, 1, **finite)), min_size=1, max_size=20),
+       st.floats(-1, 1), st.floats(-1, 1))
+def test_the_cone_of_many_homogeneous_rows_is_their_two_extreme_rows(directions, v, omega):
+    G = np.array(directions)
+    assume(np.all(np.hypot(G[:, 0], G[:, 1]) > 1e-6))
+    reduced = families._cone(G)
+    u = np.array([v, omega])
+    if np.all(reduced @ u <= 0.0):
+        assert np.all(G @ u <= 1e-9)
+
+
+def test_blind_rows_forbid_exactly_the_blocked_directions():
+    both = families.blind_rows(True, True)
+    assert both.G.tolist() == [[1.0, 0.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0]] and both.h.tolist() == [0.0, 0.0]
+    assert len(families.blind_rows(False, False)) == 0
+    assert np.all(both.hard) and not np.any(families.barrier_rows(
+        families.geometry(np.array([[1.0, 0.0]]), np.zeros(1), np.zeros((1, 2)), np.array([0.2]), 0.0, 0.0, 0.0),
+        0.5, 1.0, DT).hard)

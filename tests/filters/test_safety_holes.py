@@ -1,0 +1,137 @@
+"""Regression tests for the holes an independent adversarial search found inside the filters' assumptions.
+
+Each test replays one deterministic scenario in the falsifier's own simulator
+(``benchmarks/falsify.py``: exact ray casting, the exact unicycle in 20 sub-steps, a chosen
+model of the base's velocity loop). Every one of them failed on the filters before the safety
+core was rebuilt (commit 2c9c834); the numbers in the comments are what that code did.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import qpsolvers
+
+from benchmarks.falsify import TOLERANCE, Episode, run
+from safenav import preset
+from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
+from safenav.synthetic import Scene, Segment, synthetic_scan
+
+M2WR_RADIUS = preset("m2wr").radius
+
+
+def assert_safe(episode: Episode) -> list[dict]:
+    """Run ``episode``; no contact and the clearance never below ``margin - 1 cm``."""
+    outcome, log = run(episode, record=True)
+    assert outcome.valid
+    assert not outcome.contact, f"contact at step {outcome.violation_step}"
+    assert outcome.min_clearance >= outcome.margin - TOLERANCE, (outcome.min_clearance, outcome.margin)
+    return log
+
+
+# ------------------------------------------------------------------ hole 1: the blind strip beside the m2wr
+
+
+def test_cbf_remembers_a_pole_that_slides_into_the_strip_beside_the_m2wr_body():
+    # The pole is seen at the start, then the arc carries it behind the lidar plane (x < 0.15 m)
+    # beside the body. Before: forgotten (H = inf, status ok) and hit at step 54.
+    assert_safe(Episode(robot="m2wr", filter="cbf", base="instant", dt=0.05, give_velocity=False,
+                        circles=((0.4, 0.52, 0.02),), nominal="arc", params=(0.7, 2.0), duration=5.0))
+
+
+def test_cbf_with_odometry_and_a_ramping_base_remembers_the_pole_too():
+    # Before: hit at step 46 with status ok throughout.
+    assert_safe(Episode(robot="m2wr", filter="cbf", base="ramp_limit", dt=0.05, give_velocity=True,
+                        circles=((0.3, 0.42, 0.02),), nominal="arc", params=(0.7, 2.0), duration=5.0))
+
+
+# ------------------------------------------------------------------ hole 2: a memory that expires
+
+
+def test_mpc_remembers_a_pole_beside_the_body_for_as_long_as_it_can_be_reached():
+    # Drive past the pole so that it ends beside the body, wait 3 s (longer than the old 2 s
+    # memory), then turn into it. Before: the pole was forgotten and hit at step 95, status ok.
+    log = assert_safe(Episode(robot="m2wr", filter="mpc", base="ramp_limit", dt=0.05, circles=((0.45, 0.42, 0.02),),
+                              nominal="script", params=(0.8, 0.5, 0.0, 3.8, 0.0, 0.0, 9.0, 0.5, 1.5), duration=7.0))
+    turning = [row for row in log if row["t"] > 3.8]
+    assert any(row["u"] != row["u_nom"] for row in turning)   # the remembered pole bends the turn
+
+
+# ------------------------------------------------------------------ hole 3: slack must not relax the blind rear
+
+
+def test_cbf_in_slack_never_reverses_into_the_unseen_rear():
+    # At rest, a wall behind at margin + 5 mm and a pole behind-right, both unseen; the nominal spins.
+    # The spin cannot be stopped in time (the look-ahead point swings towards the wall): SLACK.
+    # Before: the slack relaxed "no reverse towards the unseen rear" too, the robot reversed at
+    # -0.14 m/s and came within 6 mm of the pole.
+    margin = CBFSafetyFilter(preset("m2wr"), 0.05).margin
+    x = -(M2WR_RADIUS + margin + 0.005)
+    outcome, rows = run(Episode(robot="m2wr", filter="cbf", base="ramp_limit", dt=0.05, circles=((-0.25, -0.3, 0.03),),
+                                segments=((x, -3.0, x, 3.0),), nominal="arc", params=(0.0, 2.0), duration=4.0,
+                                noise=0.0), record=True)
+    assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
+    assert "slack" in outcome.statuses   # the situation the hole needs does arise
+    assert min(row["u"][0] for row in rows) >= 0.0
+
+
+# ------------------------------------------------------------------ hole 4: a base that lags
+
+
+@pytest.mark.parametrize("robot", ["rosbot", "puzzlebot", "m2wr"])
+def test_mpc_told_the_lag_stays_clear_with_a_first_order_lag_base(robot):
+    # A wall just out of the path and a full-speed turning nominal. Before: collisions on every
+    # preset (the plan assumed each command was reached within the period).
+    spec = preset(robot)
+    wall = spec.radius + 0.12
+    assert_safe(Episode(robot=robot, filter="mpc", base="lag", dt=0.05, segments=((0.16, wall, 3.0, wall),),
+                        nominal="arc", params=(spec.v_max, spec.omega_max), duration=4.0,
+                        settings={"time_constant": 0.05}))
+
+
+def test_a_base_that_lags_more_than_the_filter_assumes_is_reported():
+    robot = preset("rosbot")
+    safety = MPCSafetyFilter(robot, 0.05)   # told nothing about a lag
+    scan = robot.scan()
+    safety.filter((1.0, 0.0), scan, velocity=(0.0, 0.0))
+    lagging = safety.filter((1.0, 0.0), scan, velocity=(0.03, 0.0))   # commanded 0.075, reached 0.03
+    assert lagging.warnings and "time_constant" in lagging.warnings[0]
+    assert "warning: the base does not follow its commands" in lagging.explain()
+
+
+# ------------------------------------------------------------------ hole 5: a cut that dropped binding rows
+
+
+def test_cbf_keeps_its_braking_rows_for_a_wall_beyond_a_door():
+    # Door with half-gap 0.31 m, a wall 0.8 m beyond it, the ROSbot at full speed. Before: the
+    # range cut dropped the wall's braking rows; the filter accelerated to 1 m/s and H reached -0.135.
+    outcome, _ = run(Episode(robot="rosbot", filter="cbf", base="ramp_limit", dt=0.05,
+                             segments=((1.0, 0.31, 1.0, 4.0), (1.0, -0.31, 1.0, -4.0), (1.8, -3.0, 1.8, 3.0)),
+                             nominal="arc", params=(1.0, 0.0), duration=4.0, noise=0.0))
+    assert outcome.min_barrier >= -1e-6 and not outcome.contact
+
+
+def test_one_step_beside_and_before_a_wall_equals_the_answer_with_every_point():
+    # Before: u_nom came back untouched; with every point the answer is 0.94 m/s.
+    robot = preset("rosbot")
+    scan = synthetic_scan(robot, Scene.of(Segment((0.8, 0.5), (0.8, -3.0)), Segment((-3.0, 0.5), (0.8, 0.5))))
+    safety = CBFSafetyFilter(robot, 0.05)
+    result = safety.filter((1.0, 0.0), scan, velocity=(1.0, 0.0))
+    reference = qpsolvers.solve_problem(safety.build_qp((1.0, 0.0), scan, (1.0, 0.0), reduce=False),
+                                        solver="quadprog")
+    assert result.status is FilterStatus.OK and reference.found
+    assert result.u[0] < 0.95
+    np.testing.assert_allclose(result.u, reference.x[:2], atol=1e-6)
+
+
+# ------------------------------------------------------------------ wiring: a command held longer than dt
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+@pytest.mark.parametrize("period", [0.075, 0.1, 0.2])
+def test_late_calls_with_the_time_given_are_planned_for_the_measured_period(filter_name, period):
+    # dt = 0.05 in the filter, but the scan callback runs slower; the base ramps at its limits.
+    # Before the period check the MPC hit the wall at 0.1 s and 0.075 s, the CBF at 0.2 s.
+    log = assert_safe(Episode(robot="rosbot", filter=filter_name, base="ramp_limit", dt=0.05, period=period,
+                              segments=((2.0, -3.0, 2.0, 3.0),), nominal="arc", params=(1.0, 0.0), duration=4.0))
+    assert {row["status"] for row in log} & {"late"}
