@@ -26,7 +26,7 @@ from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
-__all__ = ["EpisodeOutcome", "run_spec", "run_specs"]
+__all__ = ["EpisodeOutcome", "Progress", "run_spec", "run_specs"]
 
 
 @dataclass(frozen=True, eq=False)

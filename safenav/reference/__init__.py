@@ -22,7 +22,15 @@ from types import MappingProxyType
 from typing import Any
 
 from safenav._checks import choice
-from safenav.reference.base import Policy, Proximity, RangeCheck, check_beam, check_sector, robot_spec
+from safenav.reference.base import (
+    Policy,
+    Proximity,
+    RangeCheck,
+    TutorialController,
+    check_beam,
+    check_sector,
+    robot_spec,
+)
 from safenav.reference.go_to_goal import GoToGoal
 from safenav.reference.obstacle_avoidance import ObstacleAvoidance
 from safenav.reference.random_walk import RandomWalk
@@ -40,6 +48,7 @@ __all__ = [
     "RandomWalk",
     "RangeCheck",
     "StopAtWall",
+    "TutorialController",
     "WallFollower",
     "check_beam",
     "check_sector",

@@ -39,7 +39,7 @@ from safenav.geometry import Pose2D
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan, Reading, SectorState
 
-__all__ = ["Policy", "Proximity", "RangeCheck", "check_beam", "check_sector"]
+__all__ = ["Policy", "Proximity", "RangeCheck", "TutorialController", "check_beam", "check_sector"]
 
 _COVERAGE_TOL = 1e-9
 
@@ -68,6 +68,36 @@ class Policy(abc.ABC):
     def state(self) -> str:
         """Name of the internal state, for logging (e.g. the wall follower's ``"follow the wall"``)."""
         return ""
+
+
+class TutorialController(Policy):
+    """A tutorial's controller: each scan decides a state and a command, clipped to an optional robot.
+
+    Subclasses implement :meth:`_decide` (the tutorial's rule, which also updates the state they
+    report); this class checks the scan and applies the robot's velocity limits, so every tutorial
+    controller treats a non-scan and the limits the same way.
+
+    Attributes:
+        robot: when given, commands are clipped to its velocity limits.
+    """
+
+    robot: RobotSpec | None
+
+    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
+        """The command the tutorial's rule gives for this scan (see the class), within the robot's limits.
+
+        Args:
+            scan: the latest scan.
+            pose: unused: the tutorials steer by the scan alone.
+
+        Raises:
+            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
+        """
+        return limited(self._decide(require_scan(type(self).__name__, scan)), self.robot)
+
+    @abc.abstractmethod
+    def _decide(self, scan: LaserScan) -> Command:
+        """The tutorial's command for ``scan``, before the robot's limits; updates the state."""
 
 
 class Proximity(enum.Enum):

@@ -5,16 +5,13 @@ from __future__ import annotations
 import math
 
 from safenav._checks import angle, positive
-from safenav.geometry import Pose2D
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
+    TutorialController,
     check_sector,
     command_pair,
-    limited,
     optional_robot,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -34,7 +31,7 @@ STATES = ("drive", "turn in place")
 """The state names, for logging."""
 
 
-class ObstacleAvoidance(Policy):
+class ObstacleAvoidance(TutorialController):
     """Drive forward while turning gently; turn in place while anything is close ahead.
 
     Reproduces tutorial 2 (Manchester Robotics Puzzlebot, "simple obstacle avoidance"):
@@ -108,19 +105,10 @@ class ObstacleAvoidance(Policy):
         self._state = STATES[0]
         self._cone = None
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
-        """:attr:`turn` when the cone ahead is blocked or unknown, else :attr:`cruise`.
-
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
-        Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
-        """
-        scan = require_scan(type(self).__name__, scan)
+    def _decide(self, scan: LaserScan) -> Command:
+        """:attr:`turn` when the cone ahead is blocked or unknown, else :attr:`cruise`."""
         cone = check_sector(scan, -self.half_angle, self.half_angle, self.threshold)
         self._cone = cone
         blocked = cone.proximity in (Proximity.NEAR, Proximity.UNKNOWN)
         self._state = STATES[int(blocked)]
-        return limited(self.turn if blocked else self.cruise, self.robot)
+        return self.turn if blocked else self.cruise

@@ -7,16 +7,13 @@ from typing import Any
 
 from safenav._checks import angle, optional_integer, positive
 from safenav.errors import InvalidConfig, InvalidScan
-from safenav.geometry import Pose2D
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
+    TutorialController,
     check_beam,
     check_sector,
-    limited,
     optional_robot,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -34,7 +31,7 @@ STATES = ("stop", "go")
 """The state names, for logging."""
 
 
-class StopAtWall(Policy):
+class StopAtWall(TutorialController):
     """Drive straight ahead while the front reading is beyond a threshold; stop otherwise.
 
     Reproduces tutorial 1 (Husarion ROSbot 2, "stop at a wall"): the node publishes
@@ -143,24 +140,18 @@ class StopAtWall(Policy):
         self._state = STATES[0]
         self._front = None
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
+    def _decide(self, scan: LaserScan) -> Command:
         """``(speed, 0)`` while the front reading is beyond the threshold, else ``(0, 0)``.
 
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
         Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
             InvalidScan: in raw-index mode, the scan has no beam ``front_index`` (the tutorial
                 would fail with an ``IndexError``).
         """
-        scan = require_scan(type(self).__name__, scan)
         front = self._read_front(scan)
         self._front = front
         go = front.proximity is Proximity.CLEAR
         self._state = STATES[int(go)]
-        return limited(Command(self.speed if go else 0.0, 0.0), self.robot)
+        return Command(self.speed if go else 0.0, 0.0)
 
     def _read_front(self, scan: LaserScan) -> RangeCheck:
         if self.front_index is not None:

@@ -8,16 +8,14 @@ from types import MappingProxyType
 
 from safenav._checks import angle, positive
 from safenav.errors import InvalidConfig
-from safenav.geometry import TWO_PI, Pose2D
+from safenav.geometry import TWO_PI
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
+    TutorialController,
     check_sector,
     command_pair,
-    limited,
     optional_robot,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -69,7 +67,7 @@ CASE_DESCRIPTIONS = (
 """The tutorial's log strings, by case number (0 is its ``else`` branch)."""
 
 
-class WallFollower(Policy):
+class WallFollower(TutorialController):
     """Find a wall, turn left at corners, and follow the wall on the robot's right.
 
     Reproduces tutorial 3 (The Construct, "Exploring ROS with a 2 wheeled robot", m2wr with
@@ -212,17 +210,8 @@ class WallFollower(Policy):
         self._case = None
         self._checks = MappingProxyType({})
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
-        """The command of the state the tutorial's case analysis gives for this scan.
-
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
-        Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
-        """
-        scan = require_scan(type(self).__name__, scan)
+    def _decide(self, scan: LaserScan) -> Command:
+        """The command of the state the tutorial's case analysis gives for this scan."""
         checks = MappingProxyType({
             name: check_sector(scan, lo, hi, self.threshold) for name, (lo, hi) in self._sectors.items()
         })
@@ -233,4 +222,4 @@ class WallFollower(Policy):
         else:
             near = tuple(check.proximity in (Proximity.NEAR, Proximity.UNKNOWN) for check in used)
             self._case, self._state_id = CASES[near]
-        return limited(self.commands[self._state_id], self.robot)
+        return self.commands[self._state_id]
