@@ -45,7 +45,7 @@ import numpy as np
 
 from safenav import PRESET_NAMES, Pose2D, preset
 from safenav._checks import argument_type, choice, integer
-from safenav.sim_bullet import BulletSim, SimConfig, pybullet
+from safenav.sim_bullet import BulletSim, SimConfig, import_pybullet
 from safenav.worlds import World, random_world
 
 COMMAND = (0.3, 0.6)
@@ -101,9 +101,10 @@ def measure(world: World, robot_name: str, threads: int, steps: int, warmup: int
             scan_times.append(clock() - start)
         raw_times = []
         client = sim.client_id
+        bullet = import_pybullet()
         for ray_from, ray_to in _raw_rays(robot_name, scan_poses):
             start = clock()
-            pybullet.rayTestBatch(ray_from, ray_to, numThreads=threads, physicsClientId=client)
+            bullet.rayTestBatch(ray_from, ray_to, numThreads=threads, physicsClientId=client)
             raw_times.append(clock() - start)
     return {"step": step_times, "scan": scan_times, "raw": raw_times, "poses": [tuple(p) for p in visited]}
 
@@ -167,7 +168,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "beams": robot.lidar.n_beams,
         "range_max_m": robot.lidar.range_max,
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version(),
-                    "pybullet_api": pybullet.getAPIVersion(), "load_average_before": load_before,
+                    "pybullet_api": import_pybullet().getAPIVersion(), "load_average_before": load_before,
                     "load_average_after": list(os.getloadavg())},
         "rows": rows,
         "parallel": parallel,

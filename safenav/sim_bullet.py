@@ -64,7 +64,8 @@ gives the same episode:
 * scan latency: the scan delivered at a step was acquired ``scan_latency`` control
   periods earlier (the reset scan until then); ``scan.stamp`` stays the acquisition time.
 
-PyBullet comes with the ``sim`` extra; without it, importing this module raises
+PyBullet comes with the ``sim`` extra. It is imported when a :class:`BulletSim` is built (so
+:class:`SimConfig` and the episode specs need no PyBullet); without it that raises
 :class:`~safenav.errors.MissingDependency` with the line ``pip install "safenav[sim]"``. The
 line PyBullet prints when it is imported ("pybullet build time: ...") is swallowed.
 
@@ -101,7 +102,7 @@ from safenav.scan import LaserScan
 from safenav.seeding import generator
 from safenav.worlds import World, obstacle_mesh
 
-__all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "gui_problem", "obstacle_mesh"]
+__all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "gui_problem", "import_pybullet", "obstacle_mesh"]
 
 
 @contextlib.contextmanager
@@ -128,16 +129,21 @@ def _output_swallowed() -> Iterator[None]:
         os.close(null)
 
 
-def _import_pybullet() -> ModuleType:
-    """PyBullet, without the "pybullet build time" line its import prints (inside progress bars, in logs)."""
+def import_pybullet() -> ModuleType:
+    """PyBullet, imported without the "pybullet build time" line it prints (inside progress bars, in logs).
+
+    Imported when a simulator is built, not with this module: configs, states and everything that
+    only describes episodes work without PyBullet installed.
+
+    Raises:
+        MissingDependency: PyBullet is not installed (the message gives ``pip install "safenav[sim]"``).
+    """
     loaded = sys.modules.get("pybullet")
     if loaded is not None:
         return loaded
     with _output_swallowed():
         return require("pybullet", extra="sim", purpose="the PyBullet simulator")
 
-
-pybullet = _import_pybullet()
 
 _OBSTACLE_RGBA = (0.55, 0.55, 0.55, 1.0)
 _ROBOT_RGBA = (0.17, 0.63, 0.17, 1.0)
@@ -274,9 +280,9 @@ class SimState:
     steps: int
 
 
-def _disconnect(client: int) -> None:
-    with contextlib.suppress(pybullet.error):   # already gone
-        pybullet.disconnect(physicsClientId=client)
+def _disconnect(bullet: ModuleType, client: int) -> None:
+    with contextlib.suppress(bullet.error):   # already gone
+        bullet.disconnect(physicsClientId=client)
 
 
 class BulletSim:
@@ -318,10 +324,11 @@ class BulletSim:
         self.config = config
         self._seed(seed)
         self._range_noise = robot.lidar.noise_std if config.range_noise is None else config.range_noise
+        self._bullet = pybullet = import_pybullet()
         self._client = pybullet.connect(pybullet.GUI if config.gui else pybullet.DIRECT)
         if self._client < 0:
             raise SimulatorError("could not connect to PyBullet" + (" (GUI needs a display)" if config.gui else ""))
-        self._finalizer = weakref.finalize(self, _disconnect, self._client)
+        self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
@@ -340,7 +347,7 @@ class BulletSim:
     def _build_obstacles(self) -> int | None:
         if not self.world.obstacles:
             return None
-        client = self._client
+        pybullet, client = self._bullet, self._client
         vertices, indices = obstacle_mesh(self.world, tolerance=self.config.cylinder_tolerance)
         shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=vertices.tolist(),
                                               indices=indices.ravel().tolist(), physicsClientId=client)
@@ -356,7 +363,7 @@ class BulletSim:
 
     def _build_robot(self) -> int:
         """A body with a visual shape only: it carries the lidar frame and shows the robot in the GUI."""
-        robot, client = self.robot, self._client
+        robot, client, pybullet = self.robot, self._client, self._bullet
         visual = pybullet.createVisualShapeArray(
             shapeTypes=[pybullet.GEOM_CYLINDER, pybullet.GEOM_BOX],
             radii=[robot.radius, 0.0],
@@ -384,10 +391,10 @@ class BulletSim:
         self._mount_offset = math.hypot(mount.x, mount.y)
 
     def _set_up_gui(self) -> None:
-        client = self._client
+        pybullet, client = self._bullet, self._client
         xmin, ymin, xmax, ymax = self.world.bounds
-        floor = pybullet.createVisualShape(pybullet.GEOM_BOX, halfExtents=[0.5 * (xmax - xmin), 0.5 * (ymax - ymin),
-                                                                          0.005],
+        floor = pybullet.createVisualShape(pybullet.GEOM_BOX,
+                                           halfExtents=[0.5 * (xmax - xmin), 0.5 * (ymax - ymin), 0.005],
                                            rgbaColor=[0.92, 0.92, 0.88, 1.0], physicsClientId=client)
         pybullet.createMultiBody(0.0, -1, floor, basePosition=[0.5 * (xmin + xmax), 0.5 * (ymin + ymax), -0.005],
                                  physicsClientId=client)
@@ -454,6 +461,7 @@ class BulletSim:
         if self._obstacle_body is None:
             return math.inf
         position = self.state.pose if pose is None else pose
+        pybullet = self._bullet
         points = pybullet.getClosestPoints(bodyA=-1, bodyB=self._obstacle_body, distance=float(max_distance),
                                            collisionShapeA=self._probe,
                                            collisionShapePositionA=[float(position[0]), float(position[1]),
@@ -485,6 +493,7 @@ class BulletSim:
         lidar = self.robot.lidar
         n = lidar.n_beams
         half_yaw = 0.5 * pose.yaw
+        pybullet = self._bullet
         pybullet.resetBasePositionAndOrientation(self._robot_body, [pose.x, pose.y, 0.0],
                                                  [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
                                                  physicsClientId=self._client)

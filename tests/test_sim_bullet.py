@@ -539,9 +539,11 @@ def test_sensor_noise_does_not_move_the_robot_and_actuation_noise_does_not_chang
     assert np.array_equal(still_scans[0], noisy_scans[0], equal_nan=True)   # the same first scan, same noise
 
 
-def test_importing_the_simulator_prints_nothing():
-    result = subprocess.run([sys.executable, "-c", "import safenav.sim_bullet"], capture_output=True, text=True,
-                            timeout=120, check=False)
+def test_building_a_simulator_prints_nothing():
+    """PyBullet prints a "build time" line when it is imported: the simulator swallows it."""
+    code = ("from safenav import preset; from safenav.sim_bullet import BulletSim; from safenav.worlds import World; "
+            "BulletSim(World('empty', ()), preset('rosbot')).close()")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0
     assert (result.stdout, result.stderr) == ("", "")
 
@@ -555,3 +557,31 @@ def test_gui_problem_names_the_missing_display(monkeypatch):
     monkeypatch.setenv("DISPLAY", ":0")
     assert gui_problem() is None
 
+
+
+def test_without_the_sim_extra_only_simulating_and_drawing_need_it():
+    """Specs, configs and experiments load without PyBullet, matplotlib and tqdm; building a simulator or
+    drawing says which extra to install."""
+    code = """
+import sys
+for name in ("pybullet", "matplotlib", "tqdm"):
+    sys.modules[name] = None
+from safenav import MissingDependency, preset
+from safenav.experiments import EpisodeSpec, cell_records
+from safenav.plots import plot_world
+from safenav.sim_bullet import BulletSim, SimConfig
+from safenav.worlds import World
+EpisodeSpec("stop_at_wall", "stop_at_wall", "cbf", 0, sim_options={"base": "lag"})
+for call in (lambda: BulletSim(World("empty", ()), preset("rosbot"), SimConfig()), lambda: plot_world(World("e", ()))):
+    try:
+        call()
+    except MissingDependency as error:
+        print(error)
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines() == [
+        "the PyBullet simulator needs the optional package 'pybullet': pip install \"safenav[sim]\"",
+        "drawing worlds and episodes (safenav.plots) needs the optional package 'matplotlib': "
+        "pip install \"safenav[sim]\"",
+    ]

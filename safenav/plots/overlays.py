@@ -13,13 +13,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from safenav.errors import InvalidConfig
-from safenav.experiments import FILTER_LABELS, EpisodeOutcome
+from safenav.experiments.tables import FILTER_LABELS
 from safenav.plots.world import matplotlib_module, new_figure, plot_world
 from safenav.robot import preset
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+    from safenav.experiments import EpisodeOutcome
 
 __all__ = ["FILTER_COLORS", "clearance_figure", "collision_rate_figure", "draw_overlay", "overlay_figure"]
 
