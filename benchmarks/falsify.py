@@ -12,7 +12,9 @@ from seeded random starts, minimising
 with the filter's own minimum barrier as a tie-breaker. Each episode starts inside the
 assumptions: every obstacle at least ``margin`` from the body and the filter's barrier
 ``H >= 0`` on its first call. A violation is a contact, or a clearance below
-``margin - tolerance`` (1 cm). Every worst case is printed with a one-line reproduction::
+``margin - tolerance`` (1 cm). (The start must also be recoverable: a robot that starts already
+moving must get a first answer without slack; starting at rest always does.) Every worst case
+is printed with a one-line reproduction::
 
     python -m benchmarks.falsify --episodes 2000 --seed 0 --json falsify.json
     python -m benchmarks.falsify --replay '{"robot": "m2wr", ...}'
@@ -59,9 +61,10 @@ __all__ = [
 
 BASES = ("instant", "ramp", "ramp_limit", "lag")
 """Models of the base's velocity loop (see the module docstring)."""
-NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script")
-"""Nominal policies an episode can use (``script`` replays a fixed command sequence)."""
-SEARCHED_NOMINALS = NOMINALS[:-1]
+NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script", "goal")
+"""Nominal policies an episode can use (``script`` replays a fixed command sequence, ``goal`` drives
+to a point with safenav's go-to-goal policy)."""
+SEARCHED_NOMINALS = NOMINALS[:-2]
 """Nominal policies the search drives the filter with."""
 SUBSTEPS = 20
 """Exact unicycle sub-steps per control period."""
@@ -93,6 +96,7 @@ class Episode:
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
         period: how long each command is really held [s] (default ``dt``); the filter is told
             the time (``now``), so a longer period is a late call it must plan for.
+        escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
     """
 
     robot: str
@@ -110,6 +114,7 @@ class Episode:
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
     period: float | None = None
+    escape: bool = False
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -156,12 +161,17 @@ class Outcome:
     steps: int
 
     hidden_at_start: bool = False
+    start_status: str = "ok"
+    deadlock_time: float = 0.0
+    escape_steps: int = 0
+    goal_distance: float | None = None
 
     @property
     def valid(self) -> bool:
-        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, and nothing
-        hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
-        return self.start_barrier >= 0.0 and not self.hidden_at_start
+        """The episode started inside the assumptions: clearance >= margin, barrier >= 0, a first answer
+        that needs no slack (a robot already moving can still stop: starting at rest always can), and
+        nothing hidden within ``START_BLIND_CLEARANCE`` of the body outside every field of view."""
+        return self.start_barrier >= 0.0 and not self.hidden_at_start and self.start_status in ("ok", "late")
 
     @property
     def violated(self) -> bool:
@@ -200,33 +210,40 @@ def hidden_at_start(robot: RobotSpec, scene: Scene, margin: float) -> bool:
     return bool(np.any(~inside))
 
 
-def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, np.ndarray], np.ndarray]:
-    """The nominal ``(t, points) -> (v, omega)`` of an episode; ``points`` are the filter's view.
+def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, LaserScan, Pose2D], np.ndarray]:
+    """The nominal ``(t, scan, pose) -> (v, omega)`` of an episode.
 
     ``arc`` (v, omega): constant. ``bang_bang`` (v, omega, period): omega changes sign every
     ``period`` [s]. ``aim_nearest`` (v, gain): full speed at the nearest scan point, turning
     towards it. ``spin_then_go`` (omega, t_spin, v): spin for ``t_spin`` [s], then drive.
     ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``script`` (t_1, v_1, omega_1,
-    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after.
+    t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after. ``goal``
+    (x, y): :class:`~safenav.reference.GoToGoal` to that point of the start frame, with the true pose.
     """
     p = episode.params
     kind = episode.nominal
     if kind in ("arc", "reverse"):
         command = np.array([p[0], p[1]])
-        return lambda t, points: command
+        return lambda t, scan, pose: command
     if kind == "bang_bang":
-        return lambda t, points: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
+        return lambda t, scan, pose: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
     if kind == "script":
         table = np.asarray(p, dtype=float).reshape(-1, 3)
 
-        def script(t: float, points: np.ndarray) -> np.ndarray:
+        def script(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
             row = int(np.searchsorted(table[:, 0], t, side="right"))
             return table[min(row, len(table) - 1), 1:].copy()
         return script
+    if kind == "goal":
+        from safenav.reference import GoToGoal
+
+        policy = GoToGoal(robot, goal=(p[0], p[1]))
+        return lambda t, scan, pose: np.asarray(policy(scan, pose), dtype=float)
     if kind == "spin_then_go":
-        return lambda t, points: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
+        return lambda t, scan, pose: np.array([0.0, p[0]]) if t < p[1] else np.array([p[2], 0.0])
     if kind == "aim_nearest":
-        def aim(t: float, points: np.ndarray) -> np.ndarray:
+        def aim(t: float, scan: LaserScan, pose: Pose2D) -> np.ndarray:
+            points = scan.points()
             if len(points) == 0:
                 return np.array([p[0], 0.0])
             nearest = points[np.argmin(np.hypot(points[:, 0], points[:, 1]))]
@@ -310,23 +327,87 @@ def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
     return best - radius
 
 
+def _segment_distances(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """Distances between segments ``a0 a1`` and ``b0 b1`` (broadcast over leading axes) [m]; 0 when they cross."""
+
+    def point_to_segment(p: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+        d = s1 - s0
+        t = np.clip(np.sum((p - s0) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-300), 0.0, 1.0)
+        return np.hypot(*np.moveaxis(p - (s0 + t[..., None] * d), -1, 0))
+
+    def cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    da, db = a1 - a0, b1 - b0
+    d1, d2 = cross(db, a0 - b0), cross(db, a1 - b0)
+    d3, d4 = cross(da, b0 - a0), cross(da, b1 - a0)
+    crossing = (d1 * d2 < 0.0) & (d3 * d4 < 0.0)
+    distance = np.minimum(np.minimum(point_to_segment(a0, b0, b1), point_to_segment(a1, b0, b1)),
+                          np.minimum(point_to_segment(b0, a0, a1), point_to_segment(b1, a0, a1)))
+    return np.where(crossing, 0.0, distance)
+
+
+def _footprint_clearances(scene: Scene, poses: np.ndarray, footprint: np.ndarray) -> np.ndarray:
+    """Distance from the footprint polygon at each pose ``(K, 3)`` to the nearest item [m] (negative: overlap)."""
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    corners = np.stack((poses[:, None, 0] + c[:, None] * footprint[None, :, 0] - s[:, None] * footprint[None, :, 1],
+                        poses[:, None, 1] + s[:, None] * footprint[None, :, 0] + c[:, None] * footprint[None, :, 1]),
+                       axis=-1)                                          # (K, V, 2)
+    edges0, edges1 = corners, np.roll(corners, -1, axis=1)
+    best = np.full(poses.shape[0], math.inf)
+    segments = scene._segment_array
+    if segments.size:
+        gaps = _segment_distances(edges0[:, :, None, :], edges1[:, :, None, :], segments[None, None, :, :2],
+                                  segments[None, None, :, 2:])
+        best = np.minimum(best, gaps.min(axis=(1, 2)))
+    circles = scene._circle_array
+    if circles.size:
+        centres = circles[None, None, :, :2]
+        gaps = _segment_distances(edges0[:, :, None, :], edges1[:, :, None, :], centres, centres)
+        best = np.minimum(best, (gaps - circles[None, None, :, 2]).min(axis=(1, 2)))
+    # A centre or a segment end inside the polygon is an overlap the edge distances miss.
+    inside = np.zeros(poses.shape[0], dtype=bool)
+    for x, y in ([*circles[:, :2].tolist(), *segments[:, :2].tolist(), *segments[:, 2:].tolist()]):
+        local_x = c * (x - poses[:, 0]) + s * (y - poses[:, 1])
+        local_y = -s * (x - poses[:, 0]) + c * (y - poses[:, 1])
+        low, high = footprint.min(axis=0), footprint.max(axis=0)
+        inside |= (local_x > low[0]) & (local_x < high[0]) & (local_y > low[1]) & (local_y < high[1])
+    return np.where(inside, np.minimum(best, 0.0) - 1e-3, best)
+
+
 def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[str, Any]]]:
     """Simulate ``episode``; returns its outcome and, with ``record``, one dict per period."""
     robot = preset(episode.robot)
     dt = episode.dt
     safety = make_filter(episode.filter, robot, dt, **episode.settings)
+    if episode.escape:
+        from safenav.filters.escape import Escape
+
+        safety = Escape(safety)
     margin = float(safety.margin)
+    deadlock_time = 0.0
+    escape_steps = 0
     scene = episode.scene()
     policy = nominal_policy(episode, robot)
     rng = np.random.default_rng(episode.seed)
     pose = Pose2D()
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
-    min_clearance = scene.clearance((0.0, 0.0), radius)
+    footprint = None
+    if episode.settings.get("body") in ("cover", "polygon") and robot.footprint is not None:
+        footprint = np.asarray(robot.footprint, dtype=float)   # the guarantee is then for the footprint
+
+    def truth(poses: np.ndarray) -> np.ndarray:
+        if footprint is None:
+            return _clearances(scene, poses[:, :2], radius)
+        return _footprint_clearances(scene, poses, footprint)
+
+    min_clearance = float(truth(np.zeros((1, 3)))[0])
     contact = min_clearance < 0.0
     violation_step = None
     statuses: dict[str, int] = {}
     start_barrier = math.nan
+    start_status = ""
     min_barrier = math.inf
     log: list[dict[str, Any]] = []
     period = episode.period if episode.period is not None else dt
@@ -336,17 +417,21 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     for step in range(steps):
         t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
-        u_nom = policy(t, scan.points())
+        u_nom = policy(t, scan, pose)
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
+            start_status = result.status.value
         min_barrier = min(min_barrier, result.min_barrier)
         statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+        if result.deadlock is not None:
+            deadlock_time = max(deadlock_time, result.deadlock.time)
+        escape_steps += bool(result.escape)
         command = np.asarray(result.u, dtype=float)
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
-        clearances = _clearances(scene, poses[1:, :2], radius)
+        clearances = truth(poses[1:])
         clearance = float(clearances[-1])
         lowest = float(clearances.min())
         min_clearance = min(min_clearance, lowest)
@@ -357,12 +442,17 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         if record:
             log.append(dict(step=step, t=t, u_nom=np.asarray(u_nom, dtype=float).tolist(), u=command.tolist(),
                             status=result.status.value, message=result.message, min_barrier=result.min_barrier,
+                            escape=result.escape, deadlock=None if result.deadlock is None else result.deadlock.time,
                             clearance=clearance, pose=(pose.x, pose.y, wrap_angle(pose.yaw)),
                             velocity=velocity.tolist()))
         if contact and not record:
             break
+    goal_distance = None
+    if episode.nominal == "goal":
+        goal_distance = math.hypot(episode.params[0] - pose.x, episode.params[1] - pose.y)
     outcome = Outcome(min_clearance, margin, float(start_barrier), float(min_barrier), contact, violation_step,
-                      statuses, step + 1, hidden_at_start(robot, scene, margin))
+                      statuses, step + 1, hidden_at_start(robot, scene, margin), start_status, deadlock_time,
+                      escape_steps, goal_distance)
     return outcome, log
 
 
@@ -382,6 +472,22 @@ N_COORDINATES = 18
 
 def _pick(unit: float, options: Sequence[str]) -> str:
     return options[min(int(unit * len(options)), len(options) - 1)]
+
+
+WALL_THICKNESS = 0.05
+"""Walls are boxes this thick [m]: a wall of no thickness seen edge-on is narrower than any beam gap, which
+the guarantee does not cover (A2, docs/safety.md); real walls are not."""
+
+
+def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
+           ) -> list[tuple[float, float, float, float]]:
+    """The four sides of a wall from ``start`` to ``end`` [m], ``WALL_THICKNESS`` thick away from the origin."""
+    start_point, end_point = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    offset = WALL_THICKNESS * np.array([math.cos(normal), math.sin(normal)])
+    if np.dot(offset, 0.5 * (start_point + end_point)) < 0.0:
+        offset = -offset     # thicken away from the robot, so the face it sees stays where it was drawn
+    corners = [start_point, end_point, end_point + offset, start_point + offset]
+    return [(*corners[i], *corners[(i + 1) % 4]) for i in range(4)]
 
 
 def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
@@ -421,7 +527,7 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         tangent = normal + 0.5 * math.pi
         cx, cy = distance * math.cos(normal), distance * math.sin(normal)
         tx, ty = 4.0 * math.cos(tangent), 4.0 * math.sin(tangent)
-        segments.append((cx - tx, cy - ty, cx + tx, cy + ty))
+        segments.extend(_thick((cx - tx, cy - ty), (cx + tx, cy + ty), normal))
     if geometry == "door":
         # A wall with one door across the heading, its gap a little wider than the body needs.
         distance = keep_out + u[6] * 1.2
@@ -434,10 +540,10 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
         for sign in (-1.0, 1.0):
             near = centre + sign * 0.5 * width * along
             far = centre + sign * 4.0 * along
-            segments.append((near[0], near[1], far[0], far[1]))
+            segments.extend(_thick(tuple(near), tuple(far), angle))
         if u[10] > 0.5:   # a back wall behind the door
             back = centre + (0.4 + u[11]) * np.array([c, s])
-            segments.append((*(back - 3.0 * along), *(back + 3.0 * along)))
+            segments.extend(_thick(tuple(back - 3.0 * along), tuple(back + 3.0 * along), angle))
     v_scale = max(spec.v_max, -spec.v_min)
     if nominal == "arc":
         params: tuple[float, ...] = (spec.v_max * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
@@ -516,25 +622,44 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
 # ---------------------------------------------------------------------------------------------- command line
 
 
+BODIES = ("disk", "polygon", "cover")
+"""Body models searched: the circumscribed disk, and the cover of the footprint (its truth is then the polygon)."""
+
+
+def _has_body(filter_name: str, robot: str, body: str) -> bool:
+    if preset(robot).footprint is None:
+        return False
+    try:
+        make_filter(filter_name, preset(robot), 0.05, body=body)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
-           geometries: Sequence[str], nominals: Sequence[str]) -> list[dict[str, Any]]:
-    """One search per robot, filter, period and base (with and without odometry for the instant
+           geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",)
+           ) -> list[dict[str, Any]]:
+    """One search per robot, filter, body, period and base (with and without odometry for the instant
     base); the geometry and the nominal are searched inside each."""
     cells = []
     for robot in robots:
         for filter_name in filters:
-            for dt in dts:
-                for base in bases:
-                    for give_velocity in ((True, False) if base == "instant" else (True,)):
-                        cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
-                                          give_velocity=give_velocity, geometry=tuple(geometries),
-                                          nominal=tuple(nominals)))
+            for body in bodies:
+                if body != "disk" and not _has_body(filter_name, robot, body):
+                    continue    # a round robot has no footprint to cover, or the filter has no such model
+                for dt in dts:
+                    for base in bases:
+                        for give_velocity in ((True, False) if base == "instant" else (True,)):
+                            cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
+                                              give_velocity=give_velocity, geometry=tuple(geometries),
+                                              nominal=tuple(nominals),
+                                              settings={} if body == "disk" else {"body": body}))
     return cells
 
 
 def _search_cell(job: tuple[dict[str, Any], int, int, str]) -> list[Found]:
     cell, episodes, seed, optimiser = job
-    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"]).margin
+    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
     return search(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)
 
 
@@ -544,7 +669,7 @@ def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found]
     summary: dict[str, dict[str, Any]] = {}
     for index, (cell, found) in enumerate(zip(cells, results, strict=True)):
         everything.extend(found)
-        key = f"{cell['robot']}/{cell['filter_name']}"
+        key = f"{cell['robot']}/{cell['filter_name']}" + ("/cover" if cell.get("settings") else "")
         entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
                                              worst_clearance_minus_margin=math.inf))
         for item in found:
@@ -555,7 +680,7 @@ def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found]
                 entry["violations"] += int(item.outcome.violated)
                 entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
                                                             item.outcome.min_clearance - item.outcome.margin)
-        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal")}
+        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal") and value != {}}
         print(f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m",
               flush=True)
     return everything, summary
@@ -571,6 +696,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--dts", nargs="+", type=float, default=[0.02, 0.05, 0.1])
     parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
     parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
+    parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     parser.add_argument("--workers", type=int, default=1, help="processes searching cells in parallel")
@@ -585,7 +711,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                   f"{row['message']}")
         print(outcome)
         return 0 if not outcome.violated else 1
-    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals)
+    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
     per_cell = max(1, args.episodes // len(cells))
     start = time.perf_counter()
     jobs = [(cell, per_cell, args.seed * 100_003 + index, args.optimiser) for index, cell in enumerate(cells)]

@@ -11,19 +11,24 @@ from safenav.errors import (
     InvalidConfig,
     InvalidScan,
     InvalidScanType,
+    LidarMismatch,
+    LidarMismatchWarning,
     MissingDependency,
     SafeNavError,
+    SafeNavWarning,
     SimulatorError,
     UnknownName,
 )
 from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
+from safenav.pointcloud import CloudSlice
 from safenav.robot import PRESET_NAMES, Command, LidarSpec, RobotSpec, as_command, preset
-from safenav.scan import LaserScan, Reading, SectorReading, SectorState
+from safenav.scan import LaserScan, Reading, SectorReading, SectorState, stamp_seconds
 
 __version__ = "0.1.0"
 
 __all__ = [
     "PRESET_NAMES",
+    "CloudSlice",
     "Command",
     "InvalidCommand",
     "InvalidCommandType",
@@ -31,18 +36,22 @@ __all__ = [
     "InvalidScan",
     "InvalidScanType",
     "LaserScan",
+    "LidarMismatch",
+    "LidarMismatchWarning",
     "LidarSpec",
     "MissingDependency",
     "Pose2D",
     "Reading",
     "RobotSpec",
     "SafeNavError",
+    "SafeNavWarning",
     "SectorReading",
     "SectorState",
     "SimulatorError",
     "UnknownName",
     "as_command",
     "preset",
+    "stamp_seconds",
     "unicycle_rollout",
     "unicycle_step",
     "wrap_angle",

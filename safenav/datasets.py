@@ -25,8 +25,12 @@ map the codes by what the sensor's protocol says they mean:
   surface, so they are dropouts, not open space.
 * **Hokuyo URG-04LX (BreezySLAM)**, millimetres: 0 ("detected object is possibly
   at 22 m", SCIP 2.0) becomes ``+inf``; 1-19 mm are error codes and become ``NaN``.
-* **ROS bag**: taken as recorded. Its 0.0 and 0.006-0.015 m error codes lie below
-  ``range_min`` = 0.02 m, so the scan model classifies them as ``INVALID``.
+* **ROS bag**: taken as recorded unless ``no_return=`` says otherwise. Its 0.0 and
+  0.006-0.015 m error codes lie below ``range_min`` = 0.02 m, so plain REP-117 classifies
+  them as ``INVALID``. The 0.0 is the URG's "no return" (as in the BreezySLAM logs):
+  ``load_rosbag(path, no_return="zero")``, or a robot whose lidar says
+  ``LidarSpec(no_return="zero")``, reads it as ``+inf``
+  (``examples/replay_rosbag.py`` replays the bag through a filter that way).
 
 :func:`resample` puts any scan onto another lidar's beam layout (for example the
 ROSbot's backwards-mounted 360-degree lidar) by base-frame direction, so real
@@ -48,7 +52,8 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from safenav.errors import InvalidConfig, InvalidScan, MissingDependency, UnknownName
+from safenav._optional import require
+from safenav.errors import InvalidConfig, InvalidScan, UnknownName
 from safenav.geometry import TWO_PI, Pose2D, unicycle_rollout, wrap_angle
 from safenav.robot import LidarSpec
 from safenav.scan import LaserScan, Reading
@@ -408,18 +413,23 @@ def _integrate_wheel_ticks(left: np.ndarray, right: np.ndarray) -> np.ndarray:
 # ========================================================================================= ROS bag
 
 
-def load_rosbag(path: str | os.PathLike[str], *, topic: str = "/scan", limit: int | None = None) -> list[RecordedScan]:
+def load_rosbag(path: str | os.PathLike[str], *, topic: str = "/scan", limit: int | None = None,
+                no_return: str | None = None) -> list[RecordedScan]:
     """``sensor_msgs/LaserScan`` messages of a ROS 1 bag (or anything ``rosbags``' AnyReader opens).
 
-    Needs the optional package ``rosbags`` (``pip install rosbags``). Each message becomes a
-    scan through :meth:`LaserScan.from_msg`, fields as recorded: readings below ``range_min``
-    (the URG's 0.0 and error codes in the demo bag) are ``INVALID`` by the scan model. The time
-    is ``header.stamp``; bags carry no pose (``pose`` is ``None``) and no mount (the origin).
+    Needs the optional package ``rosbags`` (``pip install "safenav[ros]"``). Each message becomes
+    a scan through :meth:`LaserScan.from_msg`, fields as recorded: by default readings below
+    ``range_min`` (the URG's 0.0 and error codes in the demo bag) are ``INVALID`` by the scan
+    model; ``no_return="zero"`` reads the 0.0 as ``+inf``. The time is ``header.stamp``; bags
+    carry no pose (``pose`` is ``None``) and no mount (:attr:`LaserScan.mount_given` is
+    ``False``: :meth:`safenav.robot.RobotSpec.match_scan` puts the scans on the robot's lidar).
 
     Args:
         path: the bag file.
         topic: the scan topic.
         limit: stop after this many scans (``None``: all).
+        no_return: the driver's no-return marker (``"zero"``, ``"range_max"``; see
+            :mod:`safenav.scan`); ``None`` is plain REP-117.
 
     Raises:
         MissingDependency: ``rosbags`` is not installed (the message gives the pip line).
@@ -428,15 +438,12 @@ def load_rosbag(path: str | os.PathLike[str], *, topic: str = "/scan", limit: in
         InvalidConfig: ``topic`` does not carry ``sensor_msgs/LaserScan``.
     """
     _check_limit(limit)
-    try:
-        from rosbags.highlevel import AnyReader
-    except ImportError:
-        raise MissingDependency("rosbags", "reading ROS 1 bags") from None
+    highlevel = require("rosbags.highlevel", extra="ros", purpose="reading ROS 1 bags", package="rosbags")
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"ROS bag {str(path)!r} does not exist")
     scans: list[RecordedScan] = []
-    with AnyReader([path]) as reader:
+    with highlevel.AnyReader([path]) as reader:
         connections = [connection for connection in reader.connections if connection.topic == topic]
         if not connections:
             topics = {connection.topic for connection in reader.connections}
@@ -448,7 +455,7 @@ def load_rosbag(path: str | os.PathLike[str], *, topic: str = "/scan", limit: in
                 )
         messages = itertools.islice(reader.messages(connections=connections), limit)
         for index, (connection, _, raw) in enumerate(messages):
-            scan = LaserScan.from_msg(reader.deserialize(raw, connection.msgtype))
+            scan = LaserScan.from_msg(reader.deserialize(raw, connection.msgtype), no_return=no_return)
             scans.append(RecordedScan(scan, scan.stamp, None, path.name, index))
     return scans
 

@@ -21,8 +21,11 @@ __all__ = [
     "InvalidConfig",
     "InvalidScan",
     "InvalidScanType",
+    "LidarMismatch",
+    "LidarMismatchWarning",
     "MissingDependency",
     "SafeNavError",
+    "SafeNavWarning",
     "SimulatorError",
     "UnknownName",
 ]
@@ -38,6 +41,15 @@ class InvalidScan(SafeNavError, ValueError):
 
 class InvalidScanType(InvalidScan, TypeError):
     """A laser-scan field of the wrong type (a string, ``None``, nested lists)."""
+
+
+class LidarMismatch(SafeNavError, ValueError):
+    """A scan that contradicts the robot's description of its lidar.
+
+    Raised by :meth:`safenav.robot.RobotSpec.match_scan` when a scan's beam layout, range
+    limits, no-return convention or explicit mount disagrees with the lidar that should have
+    taken it (or names no lidar of the robot). The message gives both values and the fix.
+    """
 
 
 class InvalidCommand(SafeNavError, ValueError):
@@ -75,6 +87,18 @@ class UnknownName(SafeNavError, ValueError):
 
 class SimulatorError(SafeNavError, RuntimeError):
     """The simulator was used out of order (stepped before ``reset()``, or after ``close()``)."""
+
+
+class SafeNavWarning(UserWarning):
+    """Root of every warning issued by safenav."""
+
+
+class LidarMismatchWarning(SafeNavWarning):
+    """A scan that contradicts the robot's lidar, accepted because the caller opted out.
+
+    Issued by :meth:`safenav.robot.RobotSpec.match_scan` with ``strict=False``, once per
+    robot and cause, instead of :class:`LidarMismatch`.
+    """
 
 
 class MissingDependency(SafeNavError, ImportError):

@@ -7,6 +7,15 @@ that needs a direction on the robot goes through the mount pose, never through
 a hard-coded beam index (the ROSbot's lidar is mounted backwards, so its beam 0
 looks forward and its beam 360 looks backward).
 
+**Mount.** ROS keeps the mount in tf, not in the message, so a scan built without
+``mount=`` (``LaserScan(...)``, :meth:`LaserScan.from_msg`) has
+:attr:`LaserScan.mount_given` ``False``: it behaves as if mounted at the base origin,
+and :meth:`safenav.robot.RobotSpec.match_scan` (which the filters call) puts it on the
+robot's lidar. Scans of a :class:`~safenav.robot.LidarSpec` always carry its mount.
+Angles are radians: a mount yaw or an ``angle_min``/``angle_max`` beyond one turn
+(``|angle| > 2*pi``), or an ``angle_increment`` that only fits the beam count in
+degrees, is rejected with "looks like degrees; expected radians".
+
 Readings follow REP-117 (see :class:`Reading`):
 
 ======================  ===================  ====================================
@@ -21,6 +30,30 @@ finite, out of range    ``INVALID``          discarded, as the sensor's spec say
 
 Directions with no informative beam (outside the field of view, or only
 ``INVALID`` readings) are *unknown*, never free.
+
+**Drivers that mark "no return" with a number.** Many drivers (Hokuyo's, some
+RPLIDAR and Gazebo versions) report ``0.0`` or ``range_max`` instead of ``+inf``.
+Plain REP-117 reads ``0.0`` as ``INVALID`` (below ``range_min``) and ``range_max`` as
+a hit, so runs of them become unknown directions or phantom walls. Say what the
+driver does with ``no_return=`` (:data:`NO_RETURN_CONVENTIONS`), and those readings
+become ``+inf`` when the scan is built:
+
+==================  ===============================================  ===========
+``no_return``       readings that become ``+inf`` (``NO_RETURN``)     default
+==================  ===============================================  ===========
+``None``            none: plain REP-117                              yes
+``"zero"``          exactly ``0.0``
+``"range_max"``     at or above ``range_max`` (finite)
+==================  ===============================================  ===========
+
+**Timestamps** (:func:`stamp_seconds`) are seconds as a float. Accepted: a real number
+of seconds; an integer of nanoseconds, recognised by its size (an integer ``>= 1e14``
+is nanoseconds: as seconds it would be three million years, while any clock in
+nanoseconds passes 1e14 ns 28 hours after its epoch; a nanosecond count smaller than
+that, such as simulation time, must be converted by the caller); ROS 2 / ``rosbags`` /
+``builtin_interfaces`` times (``sec``, ``nanosec``); ROS 1 times (``secs``, ``nsecs``);
+rclpy ``Time`` (``nanoseconds``); anything with ``to_sec()``. Anything else raises
+:class:`~safenav.errors.InvalidScanType` naming its type.
 """
 
 from __future__ import annotations
@@ -36,15 +69,38 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from safenav.errors import InvalidScan, InvalidScanType
+from safenav._checks import choice, is_real, number
+from safenav.errors import InvalidScan, InvalidScanType, SafeNavError
 from safenav.geometry import TWO_PI, Pose2D, wrap_angle
 
-__all__ = ["BeamGeometry", "LaserScan", "Reading", "SectorReading", "SectorState"]
+__all__ = [
+    "NANOSECOND_STAMP_THRESHOLD",
+    "NO_RETURN_CONVENTIONS",
+    "BeamGeometry",
+    "LaserScan",
+    "Reading",
+    "SectorReading",
+    "SectorState",
+    "check_radians",
+    "check_scan",
+    "stamp_seconds",
+]
 
 #: Slack on the beam-count check: ROS drivers differ by one beam in whether
 #: ``angle_max`` is the last beam's angle or one increment past it.
 COUNT_TOLERANCE = 1.0 + 1e-6
 _ANGLE_TOL = 1e-9
+
+#: How a driver may mark "no return" with a number (``no_return=``; see the module docstring).
+NO_RETURN_CONVENTIONS = ("zero", "range_max")
+
+#: An integer timestamp at least this large is nanoseconds, not seconds (module docstring).
+NANOSECOND_STAMP_THRESHOLD = 10**14
+_NANOSECONDS_PER_SECOND = 10**9
+
+
+#: Cached properties of :class:`LaserScan` computed from its ranges.
+_RANGE_CACHES = ("readings", "_hit_mask", "n_informative")
 
 
 class Reading(enum.IntEnum):
@@ -123,6 +179,133 @@ def _beam_geometry(angle_min: float, angle_increment: float, n_beams: int, mount
     return BeamGeometry(*arrays)
 
 
+class _UnstatedMount(Pose2D):
+    """The identity pose of a scan built without a mount (:attr:`LaserScan.mount_given` is ``False``).
+
+    Its own type, so "not given" survives :func:`dataclasses.replace`, copies and pickling,
+    while every computation sees the identity pose.
+    """
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "Pose2D(x=0.0, y=0.0, yaw=0.0)"
+
+
+_UNSTATED_MOUNT = _UnstatedMount()
+
+
+def _is_unstated(mount: Any) -> bool:
+    return mount is None or (type(mount) is _UnstatedMount and tuple(mount) == (0.0, 0.0, 0.0))
+
+
+def check_radians(name: str, value: Any, *, error: type[SafeNavError] = InvalidScan) -> float:
+    """``value`` as a finite angle [rad] within one turn, or ``error`` naming ``name``.
+
+    No angle of a planar scan or mount needs more than one turn, so ``|value| > 2*pi`` is
+    taken for degrees (``mount=(0, 0, 180)``) and rejected with "looks like degrees;
+    expected radians".
+    """
+    result = number(name, value, error=error)
+    if abs(result) > TWO_PI + _ANGLE_TOL:
+        raise error(f"{name}={value!r} looks like degrees; expected radians within one turn (|{name}| <= 2*pi)")
+    return result
+
+
+def stamp_seconds(stamp: Any, name: str = "stamp") -> float | None:
+    """A timestamp in seconds from any accepted form; ``None`` stays ``None``.
+
+    Accepted forms (see the module docstring): a real number of seconds; an integer of
+    nanoseconds, recognised as an integer ``>= 1e14`` (:data:`NANOSECOND_STAMP_THRESHOLD`);
+    an object with ``sec`` and ``nanosec`` (ROS 2, ``builtin_interfaces/Time``, rosbags) or
+    ``secs`` and ``nsecs`` (ROS 1); an rclpy ``Time`` (``nanoseconds``); anything with
+    ``to_sec()`` (rospy). Use it for ``Odometry`` and ``TwistStamped`` stamps too, so every
+    time in a loop is on the same scale.
+
+    Args:
+        stamp: the time.
+        name: how error messages name it (``"header.stamp"``).
+
+    Returns:
+        The time [s], or ``None`` when ``stamp`` is ``None``.
+
+    Raises:
+        InvalidScanType: ``stamp`` is none of the accepted forms (the message names its type).
+        InvalidScan: the value is not finite, a float at least 1e14 (nanoseconds as a float:
+            pass them as an integer, or seconds), or a nanosecond field outside ``[0, 1e9)``.
+    """
+    if stamp is None:
+        return None
+    if is_real(stamp):
+        if isinstance(stamp, numbers.Integral) and stamp >= NANOSECOND_STAMP_THRESHOLD:
+            return _nanoseconds_to_seconds(int(stamp))
+        result = float(stamp)
+        if not math.isfinite(result):
+            raise InvalidScan(f"{name} must be finite, got {result!r}")
+        if abs(result) >= NANOSECOND_STAMP_THRESHOLD:
+            raise InvalidScan(
+                f"{name}={stamp!r} looks like nanoseconds; expected seconds, or nanoseconds as an integer >= 1e14"
+            )
+        return result
+    for seconds_field, nanoseconds_field in (("sec", "nanosec"), ("secs", "nsecs")):
+        if hasattr(stamp, seconds_field):
+            if not hasattr(stamp, nanoseconds_field):
+                raise InvalidScanType(
+                    f"{name} of type {type(stamp).__name__} has {seconds_field!r} but no {nanoseconds_field!r}; "
+                    f"expected a ROS time with both"
+                )
+            seconds = number(f"{name}.{seconds_field}", getattr(stamp, seconds_field), error=InvalidScan)
+            nanoseconds = number(f"{name}.{nanoseconds_field}", getattr(stamp, nanoseconds_field), low=0.0,
+                                 high=float(_NANOSECONDS_PER_SECOND), high_open=True, error=InvalidScan)
+            return seconds + nanoseconds * 1e-9
+    if hasattr(stamp, "nanoseconds"):  # rclpy.time.Time
+        nanoseconds = stamp.nanoseconds
+        if isinstance(nanoseconds, numbers.Integral) and not isinstance(nanoseconds, bool):
+            return _nanoseconds_to_seconds(int(nanoseconds))
+        return number(f"{name}.nanoseconds", nanoseconds, error=InvalidScan) * 1e-9
+    to_sec = getattr(stamp, "to_sec", None)
+    if callable(to_sec):  # rospy.Time
+        return number(f"{name}.to_sec()", to_sec(), error=InvalidScan)
+    raise InvalidScanType(
+        f"{name} must be a real number of seconds, integer nanoseconds (>= 1e14) or a ROS time "
+        f"(sec/nanosec, secs/nsecs, nanoseconds or to_sec()), got {stamp!r} of type {type(stamp).__name__}"
+    )
+
+
+def _nanoseconds_to_seconds(nanoseconds: int) -> float:
+    """Integer nanoseconds as seconds, split first so that the float keeps the nanoseconds it can."""
+    seconds, remainder = divmod(nanoseconds, _NANOSECONDS_PER_SECOND)
+    return seconds + remainder * 1e-9
+
+
+def _degrees_hint(angle_min: float, angle_max: float, angle_increment: float, n_beams: int) -> str:
+    """Why the layout looks like degrees (empty when it does not)."""
+    hints = [f"{name}={value!r}" for name, value in (("angle_min", angle_min), ("angle_max", angle_max))
+             if abs(value) > TWO_PI + _ANGLE_TOL]
+    if n_beams > 1 and not hints:
+        span = angle_max - angle_min
+        fits_radians = abs((n_beams - 1) * angle_increment - span) <= angle_increment * COUNT_TOLERANCE
+        increment_if_degrees = math.radians(angle_increment)
+        fits_degrees = abs((n_beams - 1) * increment_if_degrees - span) <= increment_if_degrees * COUNT_TOLERANCE
+        if fits_degrees and not fits_radians:
+            hints.append(f"angle_increment={angle_increment!r}")
+    if not hints:
+        return ""
+    return f"{' and '.join(hints)} {'look' if len(hints) > 1 else 'looks'} like degrees; expected radians"
+
+
+def _mark_no_returns(ranges: np.ndarray, convention: str | None, range_max: float) -> np.ndarray:
+    """``ranges`` with the driver's no-return marker replaced by ``+inf`` (read-only; unchanged for ``None``)."""
+    if convention is None:
+        return ranges
+    marked = ranges == 0.0 if convention == "zero" else (ranges >= range_max) & np.isfinite(ranges)
+    if not marked.any():
+        return ranges
+    converted = np.where(marked, math.inf, ranges)
+    converted.flags.writeable = False
+    return converted
+
+
 def _real(name: str, value: Any) -> float:
     """``value`` as a finite float, or the error that names ``name``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -170,7 +353,8 @@ class LaserScan:
     :meth:`from_msg`, or from a robot's template (:meth:`safenav.robot.LidarSpec.scan`).
     Construction validates every field and raises :class:`~safenav.errors.InvalidScan`
     (or :class:`~safenav.errors.InvalidScanType`) naming the field and the value.
-    ``ranges`` and ``intensities`` are copied into read-only float64 arrays.
+    ``ranges`` and ``intensities`` are copied into read-only float64 arrays; with
+    ``no_return`` set, the driver's no-return marker is already ``+inf`` in ``ranges``.
 
     Attributes:
         angle_min: angle of beam 0 in the laser frame [rad].
@@ -183,9 +367,15 @@ class LaserScan:
         time_increment: time between beams [s].
         scan_time: time between scans [s].
         intensities: per-beam intensities (device units), empty or one per range.
-        mount: pose of the laser frame in the robot base frame [m, m, rad].
-        stamp: acquisition time of the scan [s], if known (``header.stamp``).
-        frame_id: name of the laser frame.
+        mount: pose of the laser frame in the robot base frame [m, m, rad]. ``None`` (the
+            default) means "not given": the scan is placed at the identity pose and
+            :attr:`mount_given` is ``False``, so :meth:`safenav.robot.RobotSpec.match_scan`
+            puts it on the robot's lidar. Radians: ``|yaw| > 2*pi`` is rejected as degrees.
+        stamp: acquisition time of the scan [s], if known (``header.stamp``); every form
+            :func:`stamp_seconds` accepts, stored as seconds.
+        frame_id: name of the laser frame (picks the lidar on a robot with several).
+        no_return: how the driver marks "no return" (:data:`NO_RETURN_CONVENTIONS`):
+            ``"zero"`` or ``"range_max"`` readings become ``+inf`` here; ``None`` is plain REP-117.
     """
 
     angle_min: float
@@ -197,9 +387,11 @@ class LaserScan:
     time_increment: float = 0.0
     scan_time: float = 0.0
     intensities: np.ndarray = field(default_factory=lambda: np.empty(0))
-    mount: Pose2D = Pose2D()
+    # None at construction means "not given"; after it, always a Pose2D (see mount_given).
+    mount: Pose2D = None  # type: ignore[assignment]
     stamp: float | None = None
     frame_id: str = "laser"
+    no_return: str | None = None
 
     def __post_init__(self) -> None:
         put = functools.partial(object.__setattr__, self)
@@ -208,7 +400,6 @@ class LaserScan:
             put(name, _real(name, getattr(self, name)))
         ranges = _real_array("ranges", self.ranges)
         intensities = _real_array("intensities", self.intensities)
-        put("ranges", ranges)
         put("intensities", intensities)
         n = ranges.size
         if n == 0:
@@ -219,49 +410,60 @@ class LaserScan:
             raise InvalidScan(f"range_min must be >= 0, got {self.range_min!r}")
         if self.range_max <= self.range_min:
             raise InvalidScan(f"range_max must be > range_min = {self.range_min!r}, got {self.range_max!r}")
+        degrees = _degrees_hint(self.angle_min, self.angle_max, self.angle_increment, n)
         expected = (self.angle_max - self.angle_min) / self.angle_increment + 1.0
         if abs(expected - n) > COUNT_TOLERANCE:
             raise InvalidScan(
                 f"ranges has {n} values but angle_min={self.angle_min!r}, angle_max={self.angle_max!r} and "
                 f"angle_increment={self.angle_increment!r} describe {expected:.3f} beams"
+                + (f"; {degrees}" if degrees else "")
             )
         if (n - 1) * self.angle_increment > TWO_PI + self.angle_increment + _ANGLE_TOL:
             raise InvalidScan(
                 f"angle_increment={self.angle_increment!r} over {n} beams spans "
                 f"{(n - 1) * self.angle_increment:.6f} rad; expected at most one turn (2*pi)"
+                + (f"; {degrees}" if degrees else "")
             )
+        if degrees:
+            raise InvalidScan(degrees)
         if intensities.size not in (0, n):
             raise InvalidScan(f"intensities has {intensities.size} values; expected 0 or {n} (one per range)")
-        mount = self.mount
-        if not isinstance(mount, Sequence) or isinstance(mount, (str, bytes)) or len(mount) != 3:
-            raise InvalidScanType(f"mount must be a pose (x, y, yaw), got {mount!r}")
-        axes = zip(Pose2D._fields, mount, strict=True)
-        put("mount", Pose2D(*(_real(f"mount.{axis}", value) for axis, value in axes)))
-        if self.stamp is not None:
-            put("stamp", _real("stamp", self.stamp))
+        if _is_unstated(self.mount):
+            put("mount", _UNSTATED_MOUNT)
+        else:
+            put("mount", _pose("mount", self.mount))
+        put("stamp", stamp_seconds(self.stamp))
         if not isinstance(self.frame_id, str):
             raise InvalidScanType(f"frame_id must be a string, got {self.frame_id!r}")
+        if self.no_return is not None:
+            choice("no_return convention", self.no_return, NO_RETURN_CONVENTIONS)
+        put("ranges", _mark_no_returns(ranges, self.no_return, self.range_max))
 
     # ------------------------------------------------------------------ construction
 
     @classmethod
-    def from_msg(cls, msg: Any, *, mount: Pose2D | Sequence[float] = Pose2D(), stamp: float | None = None) -> LaserScan:
+    def from_msg(cls, msg: Any, *, mount: Pose2D | Sequence[float] | None = None, stamp: Any = None,
+                 no_return: str | None = None) -> LaserScan:
         """Convert any object with ``sensor_msgs/LaserScan`` attributes.
 
         Works with rospy, rclpy and rosbags messages and with a
-        ``types.SimpleNamespace``; ROS is not imported. ``header.stamp`` (ROS 1
-        ``secs``/``nsecs`` or ROS 2 ``sec``/``nanosec``) becomes :attr:`stamp`
-        unless ``stamp`` is given, and ``header.frame_id`` becomes :attr:`frame_id`.
+        ``types.SimpleNamespace``; ROS is not imported. ``header.stamp`` (any form
+        :func:`stamp_seconds` accepts) becomes :attr:`stamp` unless ``stamp`` is given,
+        and ``header.frame_id`` becomes :attr:`frame_id`.
 
         Args:
             msg: the message-like object.
-            mount: pose of the laser frame in the base frame [m, m, rad]
-                (ROS keeps it in tf, not in the message).
-            stamp: acquisition time [s], overriding the header.
+            mount: pose of the laser frame in the base frame [m, m, rad]. ROS keeps it in
+                tf, not in the message; leave it out and the robot's lidar mount is used
+                (:meth:`safenav.robot.RobotSpec.match_scan`, which the filters call).
+            stamp: acquisition time, overriding the header (seconds, or any form of
+                :func:`stamp_seconds`).
+            no_return: the driver's no-return marker, ``"zero"`` or ``"range_max"``
+                (:data:`NO_RETURN_CONVENTIONS`); ``None`` is plain REP-117.
 
         Raises:
             InvalidScan: a field is missing or inconsistent (the message names it).
-            InvalidScanType: a field has the wrong type.
+            InvalidScanType: a field has the wrong type, or the stamp is of no known form.
         """
         values: dict[str, Any] = {}
         for name in ("angle_min", "angle_max", "angle_increment", "time_increment", "scan_time",
@@ -275,17 +477,66 @@ class LaserScan:
         values["intensities"] = getattr(msg, "intensities", ())
         header = getattr(msg, "header", None)
         if stamp is None and header is not None:
-            stamp = _header_stamp(getattr(header, "stamp", None))
+            stamp = stamp_seconds(getattr(header, "stamp", None), "header.stamp")
         frame_id = getattr(header, "frame_id", "laser") if header is not None else "laser"
-        return cls(**values, mount=mount, stamp=stamp, frame_id=frame_id if isinstance(frame_id, str) else "laser")
+        return cls(**values, mount=mount, stamp=stamp, frame_id=frame_id if isinstance(frame_id, str) else "laser",
+                   no_return=no_return)
 
     def with_ranges(self, ranges: Any, intensities: Any = ()) -> LaserScan:
         """A scan with the same layout and new readings (validated)."""
         return dataclasses.replace(self, ranges=ranges, intensities=intensities)
 
     def replace(self, **changes: Any) -> LaserScan:
-        """A copy with some fields changed (validated), as :func:`dataclasses.replace`."""
+        """A copy with some fields changed (validated), as :func:`dataclasses.replace`.
+
+        An unchanged mount stays as it was, given or not; ``mount=None`` makes it "not given".
+        """
         return dataclasses.replace(self, **changes)
+
+    def with_mount(self, mount: Pose2D | Sequence[float]) -> LaserScan:
+        """This scan on another mount pose [m, m, rad] (:attr:`mount_given` ``True``).
+
+        Only the mount is validated: the readings and everything derived from them are
+        shared with this scan, so the call costs a few microseconds (the filters call it
+        on every scan through :meth:`safenav.robot.RobotSpec.match_scan`).
+        """
+        return self._copy_with(mount=_pose("mount", mount))
+
+    def with_no_return(self, convention: str | None) -> LaserScan:
+        """This scan read with the driver's no-return convention (:data:`NO_RETURN_CONVENTIONS`).
+
+        A scan that already states a convention keeps its readings (markers already became
+        ``+inf``); asking for a different one raises, since its markers are gone.
+
+        Raises:
+            InvalidScan: the scan states another convention.
+            UnknownName: ``convention`` is not one of :data:`NO_RETURN_CONVENTIONS`.
+        """
+        if convention == self.no_return:
+            return self
+        if self.no_return is not None:
+            raise InvalidScan(
+                f"scan was built with no_return={self.no_return!r}; cannot re-read it with no_return={convention!r}"
+            )
+        choice("no_return convention", convention, NO_RETURN_CONVENTIONS)
+        ranges = _mark_no_returns(self.ranges, convention, self.range_max)
+        return self._copy_with(no_return=convention, ranges=ranges, derived_from_ranges=ranges is not self.ranges)
+
+    def _copy_with(self, *, derived_from_ranges: bool = False, **values: Any) -> LaserScan:
+        """A shallow copy with already validated ``values``; cached readings are kept unless the ranges change."""
+        copy = object.__new__(LaserScan)
+        state = dict(self.__dict__)
+        if derived_from_ranges:
+            for name in _RANGE_CACHES:
+                state.pop(name, None)
+        state.update(values)
+        copy.__dict__.update(state)
+        return copy
+
+    @property
+    def mount_given(self) -> bool:
+        """Whether the mount was given (``False``: placed at the identity until matched to a robot)."""
+        return type(self.mount) is not _UnstatedMount
 
     # ------------------------------------------------------------------ geometry
 
@@ -450,11 +701,22 @@ class LaserScan:
     def __repr__(self) -> str:
         counts = np.bincount(self.readings, minlength=len(Reading))
         summary = ", ".join(f"{reading.name.lower()}={counts[reading]}" for reading in Reading if counts[reading])
+        mount = tuple(round(v, 4) for v in self.mount) if self.mount_given else "not given"
+        no_return = f", no_return={self.no_return!r}" if self.no_return else ""
         return (
             f"LaserScan({self.n_beams} beams, angle_min={self.angle_min:.4f}, "
             f"angle_increment={self.angle_increment:.6f}, range=[{self.range_min:g}, {self.range_max:g}] m, "
-            f"mount={tuple(round(v, 4) for v in self.mount)}, {summary})"
+            f"mount={mount}{no_return}, {summary})"
         )
+
+
+def check_scan(scan: Any, name: str = "scan") -> LaserScan:
+    """``scan`` if it is a :class:`LaserScan`, else :class:`~safenav.errors.InvalidScanType` saying how to make one."""
+    if not isinstance(scan, LaserScan):
+        raise InvalidScanType(
+            f"{name} must be a safenav LaserScan (use LaserScan.from_msg for ROS messages), got {type(scan).__name__}"
+        )
+    return scan
 
 
 def _sector_width(lo: float, hi: float) -> float:
@@ -464,14 +726,13 @@ def _sector_width(lo: float, hi: float) -> float:
     return (hi - lo) % TWO_PI
 
 
-def _header_stamp(stamp: Any) -> float | None:
-    """Seconds from a ROS 1 (``secs``/``nsecs``) or ROS 2 (``sec``/``nanosec``) time, or a float."""
-    if stamp is None:
-        return None
-    if isinstance(stamp, numbers.Real) and not isinstance(stamp, bool):
-        return float(stamp)
-    for seconds, nanoseconds in (("sec", "nanosec"), ("secs", "nsecs")):
-        if hasattr(stamp, seconds):
-            return float(getattr(stamp, seconds)) + 1e-9 * float(getattr(stamp, nanoseconds, 0))
-    to_sec = getattr(stamp, "to_sec", None)
-    return float(to_sec()) if callable(to_sec) else None
+def _pose(name: str, pose: Any) -> Pose2D:
+    """``pose`` as a :class:`Pose2D` of finite floats, yaw in radians, or the error naming ``name``."""
+    if type(pose) is Pose2D and all(type(value) is float for value in pose):  # fast path: a checked spec's mount
+        x, y, yaw = pose
+        if math.isfinite(x + y + yaw) and abs(yaw) <= TWO_PI + _ANGLE_TOL:
+            return pose
+    if not isinstance(pose, Sequence) or isinstance(pose, (str, bytes)) or len(pose) != 3:
+        raise InvalidScanType(f"{name} must be a pose (x, y, yaw), got {pose!r}")
+    x, y, yaw = (_real(f"{name}.{axis}", value) for axis, value in zip(Pose2D._fields, pose, strict=True))
+    return Pose2D(x, y, check_radians(f"{name}.yaw", yaw))

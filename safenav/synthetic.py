@@ -123,7 +123,7 @@ def cast(origin: tuple[float, float], angles: np.ndarray, scene: Scene) -> np.nd
         a = seg[:, :2] - o
         e = seg[:, 2:] - seg[:, :2]
         denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             t = (a[None, :, 0] * e[None, :, 1] - a[None, :, 1] * e[None, :, 0]) / denom
             u = (a[None, :, 0] * d[:, None, 1] - a[None, :, 1] * d[:, None, 0]) / denom
         hit = (np.abs(denom) > 1e-15) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)

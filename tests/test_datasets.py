@@ -15,7 +15,17 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from safenav import InvalidConfig, InvalidScan, LidarSpec, MissingDependency, Pose2D, Reading, SafeNavError, preset
+from safenav import (
+    InvalidConfig,
+    InvalidScan,
+    LidarMismatch,
+    LidarSpec,
+    MissingDependency,
+    Pose2D,
+    Reading,
+    SafeNavError,
+    preset,
+)
 from safenav.datasets import (
     RECORDING_FILES,
     RecordedScan,
@@ -378,7 +388,8 @@ def test_lidar_data_dir_honours_the_environment(tmp_path: Path, monkeypatch: pyt
 def test_missing_rosbags_names_the_pip_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "rosbags", None)
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
-    with pytest.raises(MissingDependency, match=r"reading ROS 1 bags needs .*pip install rosbags") as caught:
+    pip_line = r"reading ROS 1 bags needs the optional package 'rosbags': pip install \"safenav\[ros\]\""
+    with pytest.raises(MissingDependency, match=pip_line) as caught:
         load_rosbag(tmp_path / "any.bag")
     assert isinstance(caught.value, ImportError) and isinstance(caught.value, SafeNavError)
     with pytest.raises(MissingDependency):
@@ -438,3 +449,52 @@ ERRORS = [
 def test_errors(tmp_path: Path, call, error: type[Exception], message: str) -> None:
     with pytest.raises(error, match=message):
         call(tmp_path)
+
+
+# ============================================================================ the bag through a filter
+
+
+def test_bag_zeros_read_as_no_return_when_the_driver_says_so(lidar_data: Path) -> None:
+    scans = load_rosbag(lidar_data / RECORDING_FILES["laser-scan-matcher-bag"], no_return="zero")
+    counts = np.bincount(_all_readings(scans), minlength=len(Reading))
+    assert (counts[Reading.NO_RETURN], counts[Reading.INVALID]) == (12_699, 643)   # zeros free, codes invalid
+    assert all(recorded.scan.no_return == "zero" and not recorded.scan.mount_given for recorded in scans)
+
+
+def _replay_example():
+    import runpy
+
+    return runpy.run_path(str(Path(__file__).resolve().parents[1] / "examples" / "replay_rosbag.py"),
+                          run_name="replay_rosbag")
+
+
+def test_bag_replayed_with_the_right_description_has_no_spurious_intervention(lidar_data: Path) -> None:
+    from safenav.filters import CBFSafetyFilter
+
+    example = _replay_example()
+    scans = example["bag_scans"](lidar_data / RECORDING_FILES["laser-scan-matcher-bag"])
+    rosbot = CBFSafetyFilter(preset("rosbot"))
+    for scan in (scans[0], scans[0].with_mount(preset("rosbot").lidar.mount)):   # the README's old wirings
+        with pytest.raises(LidarMismatch, match=r"681 beams vs 720") as caught:
+            rosbot.filter((0.3, 0.0), scan)
+        assert "LidarSpec(n_beams=681, angle_min=-2.08621, angle_max=2.08621" in str(caught.value)
+    replay = example["replay"]
+    turned = replay(scans, "turned", "held", 0.3)                   # what the old wiring amounted to
+    assert turned.spurious > 150 and turned.statuses.get("ok", 0) < 10
+    assert replay(scans, "turned", "fed back", 0.3).mean_speed < 0.01            # stopped for good
+    assert replay(scans, "zeros-invalid", "held", 0.3).spurious > 20             # zeros read as unknown
+    held = replay(scans, "right", "held", 0.3)                      # the right description
+    assert held.spurious == 0 and held.slack <= 0.25 * len(scans)
+    for speed in (0.1, 0.3, 0.5):
+        fed_back = replay(scans, "right", "fed back", speed)
+        assert fed_back.spurious == 0 and fed_back.slack <= 0.05 * len(scans)
+        assert fed_back.mean_speed >= 0.8 * speed                   # the robot keeps going
+
+
+@pytest.mark.parametrize("name", list(LAYOUTS))
+def test_a_lidar_described_from_the_first_scan_matches_every_scan_of_the_recording(
+        recordings: dict[str, list[RecordedScan]], name: str) -> None:
+    scans = [recorded.scan for recorded in recordings[name]]
+    mount = None if scans[0].mount_given else Pose2D()          # BreezySLAM's laser sits 0.145 m ahead
+    robot = preset("rosbot").replace(lidar=LidarSpec.from_scan(scans[0], mount=mount))
+    assert all(robot.match_scan(scan).mount_given for scan in scans)

@@ -12,6 +12,7 @@ from safenav import errors
         (errors.InvalidCommandType, (ValueError, TypeError)),
         (errors.InvalidConfig, (ValueError,)),
         (errors.UnknownName, (ValueError,)),
+        (errors.LidarMismatch, (ValueError,)),
         (errors.MissingDependency, (ImportError,)),
     ],
 )
@@ -38,6 +39,7 @@ def test_missing_dependency_gives_the_pip_line():
         errors.UnknownName("filter", "rrt", ["cbf", "mpc"], hint="see make_filter"),
         errors.MissingDependency("rosbags", "reading ROS bags"),
         errors.InvalidScan("ranges is empty; expected at least one beam"),
+        errors.LidarMismatch("scan mount (0, 0, 0) contradicts the mount (0, 0, 3.142)"),
     ],
 )
 def test_errors_survive_pickling_between_processes(error):
@@ -45,3 +47,9 @@ def test_errors_survive_pickling_between_processes(error):
 
     copy = pickle.loads(pickle.dumps(error))
     assert type(copy) is type(error) and str(copy) == str(error)
+
+
+def test_lidar_mismatch_warning_is_a_safenav_user_warning():
+    assert issubclass(errors.LidarMismatchWarning, errors.SafeNavWarning)
+    assert issubclass(errors.SafeNavWarning, UserWarning)
+    assert not issubclass(errors.SafeNavWarning, errors.SafeNavError)   # a warning, never raised by default

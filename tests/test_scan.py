@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from safenav import InvalidScan, InvalidScanType, LaserScan, Pose2D, Reading, SectorState, preset
+from safenav import InvalidScan, InvalidScanType, LaserScan, Pose2D, Reading, SectorState, UnknownName, preset
 from safenav.geometry import wrap_angle
 from safenav.synthetic import Scene, synthetic_scan, wall
 
@@ -49,7 +49,7 @@ conventions = st.fixed_dictionaries({
     "angle_min": st.floats(-math.pi, 0.0),
     "fov": st.floats(HALF_PI, 2 * math.pi),
     "n": st.integers(10, 2000),
-    "mount_yaw": st.floats(-10.0, 10.0),
+    "mount_yaw": st.floats(-2 * math.pi, 2 * math.pi),  # beyond one turn is rejected as degrees
 })
 
 
@@ -283,3 +283,200 @@ def test_from_msg_accepts_a_message_without_header_or_intensities():
     del message.header, message.intensities
     scan = LaserScan.from_msg(message, stamp=4.0)
     assert scan.stamp == 4.0 and scan.intensities.size == 0
+
+
+# ------------------------------------------------------------------ mount given or not
+
+def test_a_scan_without_mount_is_at_the_identity_but_says_the_mount_was_not_given():
+    scan = make_scan()
+    assert not scan.mount_given and scan.mount == Pose2D()
+    assert np.allclose(scan.points("base"), scan.points("laser"))
+    assert LaserScan.from_msg(ros1_like()).mount_given is False
+    assert make_scan(mount=Pose2D()).mount_given is True                      # the identity, given
+    assert LaserScan.from_msg(ros1_like(), mount=(0.0, 0.0, 0.0)).mount_given is True
+    assert preset("puzzlebot").scan().mount_given is True                    # the simulator's scans
+
+
+def test_not_given_survives_replace_pickling_and_copies():
+    import copy
+    import dataclasses
+    import pickle
+
+    scan = make_scan()
+    for twin in (scan.replace(stamp=3.0), scan.with_ranges([1.0] * 5), dataclasses.replace(scan, frame_id="x"),
+                 pickle.loads(pickle.dumps(scan)), copy.deepcopy(scan)):
+        assert twin.mount_given is False and twin.mount == Pose2D()
+    assert scan.replace(mount=(0.1, 0.0, 0.0)).mount_given is True
+    assert make_scan(mount=(0.1, 0.0, 0.0)).replace(mount=None).mount_given is False
+
+
+def test_with_mount_places_the_scan_and_shares_its_readings():
+    scan = make_scan(ranges=[1.0, math.nan, math.inf, 2.0, 0.05])
+    readings = scan.readings
+    moved = scan.with_mount((0.2, 0.1, math.pi))
+    assert moved.mount == Pose2D(0.2, 0.1, math.pi) and moved.mount_given
+    assert moved.ranges is scan.ranges and moved.readings is readings
+    assert np.allclose(moved.points(), Pose2D(0.2, 0.1, math.pi).to_parent(scan.points("laser")))
+    assert not scan.mount_given                                              # the original is unchanged
+    with pytest.raises(InvalidScan, match=r"mount\.yaw=180\.0 looks like degrees"):
+        scan.with_mount((0.0, 0.0, 180))
+
+
+# ------------------------------------------------------------------ degrees
+
+DEGREE_MISTAKES = [
+    (dict(mount=(0.0, 0.0, 180.0)), "mount.yaw=180.0 looks like degrees; expected radians"),
+    (dict(mount=(0.15, 0.0, -90.0)), "mount.yaw=-90.0 looks like degrees; expected radians"),
+    (dict(angle_min=-90.0, angle_max=90.0, angle_increment=45.0),
+     "angle_min=-90.0 and angle_max=90.0 look like degrees; expected radians"),
+    (dict(angle_min=0.0, angle_max=359.0, angle_increment=1.0, ranges=np.ones(360)),
+     "angle_max=359.0 looks like degrees; expected radians"),
+    (dict(angle_increment=45.0), "angle_increment=45.0 looks like degrees; expected radians"),
+    (dict(angle_min=-math.pi, angle_max=math.pi, angle_increment=0.5, ranges=np.ones(721)),
+     "angle_increment=0.5 looks like degrees; expected radians"),
+]
+
+
+@pytest.mark.parametrize(("changes", "fragment"), DEGREE_MISTAKES)
+def test_angles_that_look_like_degrees_are_rejected(changes, fragment):
+    with pytest.raises(InvalidScan) as info:
+        make_scan(**changes)
+    assert fragment in str(info.value)
+
+
+@pytest.mark.parametrize("yaw", [2 * math.pi, -2 * math.pi, math.pi, 6.0])
+def test_any_yaw_within_one_turn_is_radians(yaw):
+    assert make_scan(mount=(0.0, 0.0, yaw)).mount.yaw == yaw
+
+
+# ------------------------------------------------------------------ timestamps
+
+class RclpyTime:
+    """The interface of ``rclpy.time.Time`` that safenav reads (rclpy is not installed here)."""
+
+    def __init__(self, nanoseconds: int) -> None:
+        self._nanoseconds = nanoseconds
+
+    @property
+    def nanoseconds(self) -> int:
+        return self._nanoseconds
+
+
+class RospyTime:
+    """The interface of ``rospy.Time`` beyond ``secs``/``nsecs``: ``to_sec()``."""
+
+    def __init__(self, seconds: float) -> None:
+        self._seconds = seconds
+
+    def to_sec(self) -> float:
+        return self._seconds
+
+
+def _builtin_time(sec: int, nanosec: int):
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE).types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+
+
+STAMPS = [
+    (12.5, 12.5),                                                     # float seconds
+    (np.float32(0.25), 0.25),
+    (1_700_000_000, 1_700_000_000.0),                                 # integer seconds (< 1e14)
+    (1_700_000_000_123_456_789, 1_700_000_000.123456789),             # integer nanoseconds
+    (np.int64(1_700_000_000_500_000_000), 1_700_000_000.5),
+    (10**14, 100_000.0),                                              # the threshold itself is nanoseconds
+    (SimpleNamespace(secs=12, nsecs=500_000_000), 12.5),              # ROS 1
+    (SimpleNamespace(sec=3, nanosec=250_000_000), 3.25),              # ROS 2 message
+    (_builtin_time(1_282_836_370, 970_876_375), 1_282_836_370.970876375),   # rosbags builtin_interfaces
+    (RclpyTime(1_700_000_000_000_000_001), 1_700_000_000.000000001),
+    (RospyTime(42.125), 42.125),
+    (None, None),
+]
+
+
+@pytest.mark.parametrize(("stamp", "seconds"), STAMPS)
+def test_every_accepted_stamp_form(stamp, seconds):
+    from safenav import stamp_seconds
+
+    result = stamp_seconds(stamp)
+    assert result == (None if seconds is None else pytest.approx(seconds, abs=1e-6, rel=0))
+    assert make_scan(stamp=stamp).stamp == result
+    header = SimpleNamespace(stamp=stamp, frame_id="laser")
+    assert LaserScan.from_msg(ros1_like(header=header)).stamp == result
+    assert LaserScan.from_msg(ros1_like(), stamp=stamp).stamp == (result if stamp is not None else 12.5)
+
+
+BAD_STAMPS = [
+    ("now", InvalidScanType, "stamp must be a real number of seconds, integer nanoseconds (>= 1e14) or a ROS time "
+                             "(sec/nanosec, secs/nsecs, nanoseconds or to_sec()), got 'now' of type str"),
+    (object(), InvalidScanType, "of type object"),
+    (True, InvalidScanType, "got True of type bool"),
+    (SimpleNamespace(seconds=3), InvalidScanType, "of type SimpleNamespace"),
+    (SimpleNamespace(sec=3), InvalidScanType, "stamp of type SimpleNamespace has 'sec' but no 'nanosec'"),
+    (SimpleNamespace(secs=3, nsecs=2_000_000_000), InvalidScan, "stamp.nsecs must be a finite number >= 0 and < 1e+09"),
+    (SimpleNamespace(sec="3", nanosec=0), InvalidScan, "stamp.sec must be a finite number, got '3' of type str"),
+    (1.7e18, InvalidScan, "stamp=1.7e+18 looks like nanoseconds; expected seconds, or nanoseconds as an integer"),
+    (-10**15, InvalidScan, "looks like nanoseconds"),
+    (math.nan, InvalidScan, "stamp must be finite, got nan"),
+    (RclpyTime(math.inf), InvalidScan, "stamp.nanoseconds must be a finite number"),
+]
+
+
+@pytest.mark.parametrize(("stamp", "exception", "fragment"), BAD_STAMPS)
+def test_a_stamp_of_no_accepted_form_raises_naming_it(stamp, exception, fragment):
+    from safenav import stamp_seconds
+
+    with pytest.raises(exception) as info:
+        stamp_seconds(stamp)
+    assert fragment in str(info.value)
+    with pytest.raises(exception, match=r"header\.stamp"):
+        LaserScan.from_msg(ros1_like(header=SimpleNamespace(stamp=stamp, frame_id="laser")))
+
+
+@given(st.integers(10**14, 4 * 10**18))
+def test_integer_nanoseconds_round_trip_to_the_microsecond(nanoseconds):
+    from safenav import stamp_seconds
+
+    seconds = stamp_seconds(nanoseconds)
+    assert abs(seconds - nanoseconds // 10**9 - (nanoseconds % 10**9) * 1e-9) <= 1e-6
+    assert stamp_seconds(SimpleNamespace(sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9)) == seconds
+
+
+# ------------------------------------------------------------------ no-return markers
+
+@pytest.mark.parametrize(
+    ("no_return", "value", "reading"),
+    [
+        (None, 0.0, Reading.INVALID),           # plain REP-117: zero is below range_min
+        ("zero", 0.0, Reading.NO_RETURN),       # the driver's "no return"
+        ("zero", 0.05, Reading.INVALID),        # other codes below range_min stay invalid
+        ("zero", 10.0, Reading.HIT),
+        (None, 10.0, Reading.HIT),              # plain REP-117: range_max is a hit
+        ("range_max", 10.0, Reading.NO_RETURN),
+        ("range_max", 10.5, Reading.NO_RETURN),
+        ("range_max", 9.99, Reading.HIT),
+        ("range_max", 0.0, Reading.INVALID),
+        ("zero", math.nan, Reading.INVALID),
+        ("zero", -math.inf, Reading.TOO_CLOSE),
+    ],
+)
+def test_no_return_option_turns_the_drivers_marker_into_inf(no_return, value, reading):
+    scan = make_scan(ranges=[value, 1.0, 1.0, 1.0, 1.0], no_return=no_return)
+    assert scan.readings[0] == reading
+    assert bool(scan.ranges[0] == math.inf) == (reading == Reading.NO_RETURN)
+    message = LaserScan.from_msg(ros1_like(ranges=(value, 1.0, 1.0, 1.0, 1.0)), no_return=no_return)
+    assert message.readings[0] == reading and message.no_return == no_return
+
+
+def test_no_return_applies_to_new_readings_and_can_be_stated_once():
+    scan = make_scan(ranges=[0.0, 1.0, 0.0, 1.0, 1.0])
+    assert scan.n_informative == 3
+    zeros = scan.with_no_return("zero")
+    assert zeros.readings.tolist() == [Reading.NO_RETURN, Reading.HIT, Reading.NO_RETURN, Reading.HIT, Reading.HIT]
+    assert zeros.n_informative == 5 and scan.n_informative == 3               # caches follow the readings
+    assert zeros.with_ranges([0.0] * 5).n_informative == 5
+    assert zeros.with_no_return("zero") is zeros
+    with pytest.raises(InvalidScan, match="built with no_return='zero'; cannot re-read it with no_return='range_max'"):
+        zeros.with_no_return("range_max")
+    with pytest.raises(UnknownName, match="unknown no_return convention 'zeros'; expected one of: range_max, zero"):
+        make_scan(no_return="zeros")

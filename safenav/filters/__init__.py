@@ -7,6 +7,7 @@ name           filter
 ``mpc``        :class:`MPCSafetyFilter`: predictive, braking-safe plan (casadi)
 ``zones``      :class:`ZonesFilter`: stop/slowdown polygons, like ROS 2's collision monitor
 ``none``       no filter (``make_filter`` returns ``None``)
+``*+escape``   the filter wrapped in :class:`~safenav.filters.escape.Escape` (deadlock escape)
 =============  ==========================================================================
 
 One concept per module: ``base`` (the call template, results, statuses and reasons),
@@ -29,6 +30,7 @@ from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFConfig, CBFSafetyFilter
 from safenav.filters.contract import FilterContractError, check_filter
 from safenav.filters.defaults import default_margin
+from safenav.filters.escape import Escape, EscapeConfig
 from safenav.filters.mpc import MPCConfig, MPCSafetyFilter
 from safenav.filters.qp import available_solvers
 from safenav.filters.zones import ZonesConfig, ZonesFilter
@@ -41,6 +43,8 @@ __all__ = [
     "BodyModel",
     "CBFConfig",
     "CBFSafetyFilter",
+    "Escape",
+    "EscapeConfig",
     "FilterContractError",
     "FilterResult",
     "FilterStatus",
@@ -64,28 +68,29 @@ FILTERS: MappingProxyType[str, str | None] = MappingProxyType({
 })
 """The one table of filters: name -> ``module:class`` (``None`` for no filter)."""
 
-FILTER_NAMES = tuple(FILTERS)
-"""Names :func:`make_filter` accepts."""
+ESCAPE_SUFFIX = "+escape"
+FILTER_NAMES = (*FILTERS, *(f"{name}{ESCAPE_SUFFIX}" for name, target in FILTERS.items() if target is not None))
+"""Names :func:`make_filter` accepts: every filter, and every filter with the deadlock escape."""
 
 
 def filter_class(name: str) -> Callable[..., SafetyFilter] | None:
-    """The class registered as ``name`` (``None`` for ``"none"``).
+    """The class registered as ``name`` (``None`` for ``"none"``; the inner filter's for ``"<name>+escape"``).
 
     Raises:
         UnknownName: ``name`` is not a filter (the message lists them).
     """
-    target = FILTERS[_checks.choice("filter", name, FILTER_NAMES)]
+    target = FILTERS[_checks.choice("filter", name, FILTER_NAMES).removesuffix(ESCAPE_SUFFIX)]
     if target is None:
         return None
     module, _, attribute = target.partition(":")
     return getattr(importlib.import_module(module), attribute)
 
 
-def make_filter(name: str, robot: RobotSpec, dt: float = 0.05, **kwargs: Any) -> SafetyFilter | None:
+def make_filter(name: str, robot: RobotSpec, dt: float = 0.05, **kwargs: Any) -> SafetyFilter | Escape | None:
     """A safety filter by name (``None`` for ``"none"``).
 
     Args:
-        name: one of :data:`FILTER_NAMES`.
+        name: one of :data:`FILTER_NAMES`; ``"<filter>+escape"`` wraps the filter in :class:`Escape`.
         robot: the robot to protect.
         dt: control period [s].
         **kwargs: the filter's settings (fields of its config class).
@@ -94,4 +99,7 @@ def make_filter(name: str, robot: RobotSpec, dt: float = 0.05, **kwargs: Any) ->
         UnknownName: ``name`` is not a filter (the message lists them).
     """
     cls = filter_class(name)
-    return None if cls is None else cls(robot, dt, **kwargs)
+    if cls is None:
+        return None
+    safety = cls(robot, dt, **kwargs)
+    return Escape(safety) if name.endswith(ESCAPE_SUFFIX) else safety

@@ -39,6 +39,7 @@ from safenav.scan import LaserScan
 __all__ = [
     "BRAKING_STATUSES",
     "MAX_DT",
+    "Deadlock",
     "FilterResult",
     "FilterStatus",
     "Reason",
@@ -52,6 +53,10 @@ MAX_DT = 1.0
 LATE_TOLERANCE = 0.05
 #: A scan stamped this far in the future [s] means the clocks disagree.
 FUTURE_TOLERANCE = 1e-3
+#: A nominal below this fraction of the velocity limits does not ask to move.
+STILL = 0.05
+#: Commands keeping less than this share of the nominal's progress count as stalled.
+STALL_PROGRESS = 0.1
 
 
 class FilterStatus(enum.Enum):
@@ -124,6 +129,48 @@ class Reason:
         return f"{self.family}: {self.detail}{where}"
 
 
+@dataclass(frozen=True)
+class Deadlock:
+    """The nominal asks to move and the filtered command has made (almost) no progress along it.
+
+    Attributes:
+        time: how long the commands have made less than ``stall_progress`` of the nominal's
+            progress, while the nominal asked to move [s].
+        point: the obstacle point behind the binding constraint, base frame [m] (``None`` when
+            an unknown region or a limit binds).
+        family: the constraint family that binds (see :class:`Reason`).
+    """
+
+    time: float
+    point: tuple[float, float] | None
+    family: str
+
+    def __str__(self) -> str:
+        where = "" if self.point is None else f" at ({self.point[0]:.2f}, {self.point[1]:.2f}) m"
+        return f"deadlocked for {self.time:.1f} s by a {self.family} constraint{where}"
+
+
+def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
+    """How much of the nominal's motion ``u`` keeps, in ``[-inf, 1]`` (1 for ``u = u_nom``).
+
+    Commands are compared as fractions of the velocity limits ``scale``, the nominal clipped to
+    them; the progress is the projection of ``u`` on ``u_nom`` divided by ``|u_nom|^2`` (capped at 1).
+    """
+    nominal = np.clip(u_nom, -scale, scale) / scale
+    size = float(nominal @ nominal)
+    if size <= 0.0:
+        return 1.0
+    return min(float((u / scale) @ nominal) / size, 1.0)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+_NO_POINTS = _read_only(np.empty((0, 2)))
+
+
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """A read-only float copy of ``array`` (arrays already read-only float are kept)."""
     if isinstance(array, np.ndarray) and not array.flags.writeable and array.dtype == np.float64:
@@ -162,6 +209,10 @@ class FilterResult:
             current base frame, for predictive filters; ``None`` otherwise.
         warnings: conditions that do not change the command but void part of the guarantee
             (e.g. the base does not follow the model), for logs.
+        deadlock: set when the nominal has asked to move for ``deadlock_time`` without the
+            commands making progress along it (see :class:`Deadlock`).
+        escape: what an escape wrapper is doing instead of the nominal (empty when it is not;
+            see :class:`~safenav.filters.escape.Escape`).
     """
 
     u: np.ndarray
@@ -172,7 +223,7 @@ class FilterResult:
     min_barrier: float = math.inf
     clearance: float = math.inf
     n_constraints: int = 0
-    constraint_points: np.ndarray = field(default_factory=lambda: _frozen(np.empty((0, 2))))
+    constraint_points: np.ndarray = field(default_factory=lambda: _NO_POINTS)
     active: tuple[int, ...] = ()
     slack: float = 0.0
     solver: str = ""
@@ -181,11 +232,16 @@ class FilterResult:
     period: float = math.nan
     plan: np.ndarray | None = None
     warnings: tuple[str, ...] = ()
+    deadlock: Deadlock | None = None
+    escape: str = ""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "u", _frozen(self.u, (2,)))
-        object.__setattr__(self, "u_nom", _frozen(self.u_nom, (2,)))
-        object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
+        same = self.u is self.u_nom       # minimal intervention: u is u_nom, share the read-only copy
+        u_nom = _frozen(self.u_nom, (2,))
+        object.__setattr__(self, "u_nom", u_nom)
+        object.__setattr__(self, "u", u_nom if same else _frozen(self.u, (2,)))
+        if self.constraint_points is not _NO_POINTS:
+            object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
         object.__setattr__(self, "active", tuple(map(int, self.active)))
         if self.plan is not None:
             object.__setattr__(self, "plan", _frozen(self.plan))
@@ -216,6 +272,10 @@ class FilterResult:
                 f" from u_nom=({self.u_nom[0]:.3f}, {self.u_nom[1]:.3f})")
         if self.message:
             line += f"; {self.message}"
+        if self.deadlock is not None:
+            line += f"; {self.deadlock}"
+        if self.escape:
+            line += f"; escape: {self.escape}"
         if math.isfinite(self.min_barrier):
             line += f"; barrier {self.min_barrier:.3f} m"
         for warning in self.warnings:
@@ -267,6 +327,9 @@ class SafetyFilter(abc.ABC):
         memory_capacity: largest number of remembered points (0 disables the memory).
         time_constant: the base's first-order lag the filter allows for [s] (0: a base that
             reaches each command within the period).
+        deadlock_time: how long the commands may make less than ``stall_progress`` of the
+            nominal's progress, while the nominal asks to move, before the result reports a
+            :class:`Deadlock` [s].
     """
 
     name = "filter"
@@ -275,7 +338,7 @@ class SafetyFilter(abc.ABC):
     def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None, scan_timeout: float = 0.5,
                  compensate_latency: bool = True, max_gap: float = math.radians(5.0),
                  side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
-                 memory_capacity: int = 4000, time_constant: float = 0.0) -> None:
+                 memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
         self.robot = robot
@@ -286,6 +349,9 @@ class SafetyFilter(abc.ABC):
         self.max_gap = _checks.number("max_gap", max_gap, low=0.0, high=2.0 * math.pi)
         self.side_tolerance = _checks.number("side_tolerance", side_tolerance, low=0.0, high=0.5 * math.pi)
         self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
+        self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
+        self._stalled = 0.0
+        self._scale = (float(robot.upper[0]), float(robot.upper[1]))
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
         if memory_range is None:
             speed = max(robot.v_max, -robot.v_min)
@@ -333,6 +399,7 @@ class SafetyFilter(abc.ABC):
         self._last_velocity = None
         self._last_command = np.zeros(2)
         self._called = False
+        self._stalled = 0.0
         self._on_reset()
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -382,10 +449,35 @@ class SafetyFilter(abc.ABC):
         self._carry(period if period is not None else self.dt, current, pose)
         result = self._screened(nominal, scans, current, scan_age, now, period,
                                 "; ".join(note for note in (clock_note, base_note) if note))
+        result = self._watch_progress(result)
         self._last_command = np.array(result.u, dtype=float)
         self._called = True
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
+
+    def _watch_progress(self, result: FilterResult) -> FilterResult:
+        """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""
+        v_scale, omega_scale = self._scale
+        v_nom, omega_nom = float(result.u_nom[0]), float(result.u_nom[1])
+        if not (math.isfinite(v_nom) and math.isfinite(omega_nom)):
+            self._stalled = 0.0
+            return result
+        # The nominal clipped to the limits, both axes as fractions of them (see progress()).
+        n_v = max(-1.0, min(1.0, v_nom / v_scale))
+        n_omega = max(-1.0, min(1.0, omega_nom / omega_scale))
+        size = n_v * n_v + n_omega * n_omega
+        kept = (float(result.u[0]) / v_scale * n_v + float(result.u[1]) / omega_scale * n_omega) / size \
+            if size > 0.0 else 1.0
+        if max(abs(n_v), abs(n_omega)) <= STILL or kept >= STALL_PROGRESS:
+            self._stalled = 0.0
+            return result
+        self._stalled += result.period if math.isfinite(result.period) else self.dt
+        if self._stalled < self.deadlock_time - 1e-9:
+            return result
+        reason = result.reason
+        deadlock = Deadlock(self._stalled, None if reason is None else reason.point,
+                            "limits" if reason is None else reason.family)
+        return _replace(result, deadlock=deadlock)
 
     def _match(self, scans: tuple[LaserScan, ...]) -> tuple[LaserScan, ...]:
         """The scans in the robot's base frame (the robot's lidar mount for scans without one)."""
@@ -413,19 +505,24 @@ class SafetyFilter(abc.ABC):
         at most ``exp(-elapsed / time_constant)`` of the way back (a first-order lag).
         """
         previous = self._last_velocity
-        if velocity is None or previous is None or not self._called or not np.all(np.isfinite(velocity)):
+        if velocity is None or previous is None or not self._called:
             return ""
-        command = self._last_command
-        tolerance = np.array([0.25 * self.robot.a_max * self.dt + 0.01, 0.25 * self.robot.alpha_max * self.dt + 0.02])
-        left = np.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
-        allowed = left * np.abs(previous - command) + tolerance
-        between = (velocity >= np.minimum(previous, command) - tolerance) & (
-            velocity <= np.maximum(previous, command) + tolerance)
-        if np.all(np.abs(velocity - command) <= allowed) and np.all(between):
+        measured = (float(velocity[0]), float(velocity[1]))
+        if not (math.isfinite(measured[0]) and math.isfinite(measured[1])):
             return ""
-        return (f"the base does not follow its commands as assumed: measured {np.round(velocity, 3).tolist()} "
-                f"after {elapsed:.3f} s from {np.round(previous, 3).tolist()} towards {np.round(command, 3).tolist()} "
-                f"(time_constant={self.time_constant}); the guarantee needs time_constant set to the base's lag")
+        command = (float(self._last_command[0]), float(self._last_command[1]))
+        left = math.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
+        robot = self.robot
+        for axis, tolerance in ((0, 0.25 * robot.a_max * self.dt + 0.01), (1, 0.25 * robot.alpha_max * self.dt + 0.02)):
+            start, target, now = float(previous[axis]), command[axis], measured[axis]
+            if abs(now - target) > left * abs(start - target) + tolerance or not (
+                    min(start, target) - tolerance <= now <= max(start, target) + tolerance):
+                return (f"the base does not follow its commands as assumed: measured "
+                        f"{np.round(velocity, 3).tolist()} after {elapsed:.3f} s from "
+                        f"{np.round(previous, 3).tolist()} towards {np.round(command, 3).tolist()} "
+                        f"(time_constant={self.time_constant}); the guarantee needs time_constant set to the "
+                        f"base's lag")
+        return ""
 
     def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
         """Move the remembered points by the motion since the previous call."""
@@ -433,7 +530,7 @@ class SafetyFilter(abc.ABC):
         last_pose, self._last_pose = self._last_pose, odometry
         last_velocity = self._last_velocity
         self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
-        if self.memory is None or not self._called:
+        if self.memory is None or not self._called or len(self.memory) == 0:
             return
         if odometry is not None and last_pose is not None:
             self.memory.carry(last_pose.inverse().compose(odometry))
@@ -524,12 +621,17 @@ class SafetyFilter(abc.ABC):
 
     def _observe(self, scans: tuple[LaserScan, ...]) -> View:
         """Obstacle points (current and remembered) and the unknown region of this call."""
-        current = beam_points(scans, self.robot.radius)
+        current = beam_points(scans, self.body)
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
-        noise = max(scan_noise(self.robot), 0.0)
-        recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
+        if frontier.complete:
+            # Every direction round the body is seen now: a remembered point is either seen again or
+            # occluded, and an occluded point cannot be the first to come within the margin.
+            recalled, uncertainty = np.empty((0, 2)), np.empty(0)
+        else:
+            noise = max(scan_noise(self.robot), 0.0)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((current, recalled)) if recalled.shape[0] else current
         return View(scans, points, np.concatenate((np.zeros(current.shape[0]), uncertainty)), current.shape[0],
@@ -568,9 +670,7 @@ def scan_noise(robot: RobotSpec) -> float:
 
 
 def _replace(result: FilterResult, **changes: Any) -> FilterResult:
-    """``result`` with some fields changed (a frozen dataclass copy)."""
-    if not changes:
-        return result
-    values = {name: getattr(result, name) for name in result.__dataclass_fields__}
-    values.update(changes)
-    return FilterResult(**values)
+    """``result`` with some fields changed, in place: it is a result this call made and nobody holds yet."""
+    for name, value in changes.items():
+        object.__setattr__(result, name, value)
+    return result

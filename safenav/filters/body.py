@@ -7,6 +7,10 @@ base frame (REP-103, x forward):
 * ``BodyModel.disk(robot)``: the circumscribed disk of radius ``robot.radius`` around the
   base origin (the classic model; a point of it needs a look-ahead to be steered, since
   turning in place does not move the origin);
+* ``BodyModel.polygon(robot)``: the footprint polygon itself (convex), for the exact
+  point-to-polygon barrier (:func:`~safenav.filters.rows.polygon_geometry`): no area excess,
+  and the polygon's corners move sideways when the robot turns, so it steers without any
+  look-ahead;
 * ``BodyModel.cover(robot, n)``: ``n`` equal disks whose centres lie along the base x axis
   (the direction of travel, so that the width the disks add to the footprint's is as small
   as possible in a door), each the circumscribed disk of one ``1/n`` slice of the
@@ -30,7 +34,7 @@ import numpy as np
 from safenav import _checks
 from safenav.robot import RobotSpec
 
-__all__ = ["BodyModel", "polygon_distance"]
+__all__ = ["BodyModel", "inside_polygon", "polygon_distance"]
 
 #: Angular spacing of the outline samples [rad] (well below the 5-degree gap bridged by the filters).
 BOUNDARY_STEP = math.radians(2.0)
@@ -57,6 +61,19 @@ def polygon_distance(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.where(inside, -distance, distance)
 
 
+def inside_polygon(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Mask of ``points`` ``(N, 2)`` inside ``polygon`` ``(V, 2)`` (any simple polygon; even-odd rule) [m]."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    a = np.asarray(polygon, dtype=float)
+    b = np.roll(a, -1, axis=0)
+    x, y = points[:, None, 0], points[:, None, 1]
+    straddles = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing_x = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] -
+                                                                                            a[None, :, 1])
+    return np.count_nonzero(straddles & (x < crossing_x), axis=1) % 2 == 1
+
+
 @dataclass(frozen=True, eq=False)
 class BodyModel:
     """The body as disks in the base frame, and its outline.
@@ -80,6 +97,23 @@ class BodyModel:
         return cls(np.zeros((1, 2)), np.array([robot.radius]), None, "disk")
 
     @classmethod
+    def polygon(cls, robot: RobotSpec) -> BodyModel:
+        """The footprint polygon (a round robot without one keeps its disk).
+
+        Raises:
+            InvalidConfig: the footprint is not convex (the exact barrier needs a convex polygon).
+        """
+        if robot.footprint is None:
+            return cls.disk(robot)
+        polygon = _counter_clockwise(np.asarray(robot.footprint, dtype=float))
+        edges = np.roll(polygon, -1, axis=0) - polygon
+        turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+        if np.any(turns < -1e-12):
+            raise _checks.InvalidConfig(f"the polygon body model needs a convex footprint, got {robot.footprint!r}; "
+                                        "use body='cover' for a concave one")
+        return cls(np.zeros((1, 2)), np.array([robot.radius]), polygon, "polygon")
+
+    @classmethod
     def cover(cls, robot: RobotSpec, n_disks: int) -> BodyModel:
         """``n_disks`` equal disks along the base x axis that cover the footprint's bounding rectangle.
 
@@ -100,6 +134,11 @@ class BodyModel:
         radius = float(np.hypot(*half))
         return cls(centres, np.full(n_disks, radius), polygon, f"cover{n_disks}")
 
+    @functools.cached_property
+    def key(self) -> tuple[bytes, float]:
+        """A hashable description of the outline, for caches: the polygon's bytes, or the disk's radius."""
+        return (self.outline.tobytes(), 0.0) if self.outline is not None else (b"", float(self.radii[0]))
+
     @property
     def n_disks(self) -> int:
         return int(self.radii.size)
@@ -110,10 +149,12 @@ class BodyModel:
         return float(np.max(np.hypot(self.centres[:, 0], self.centres[:, 1]) + self.radii))
 
     def clearance(self, points: np.ndarray) -> float:
-        """Smallest distance from the disks to ``points`` ``(N, 2)`` [m] (``inf`` without points)."""
+        """Smallest distance from the body (its disks or polygon) to ``points`` ``(N, 2)`` [m] (``inf`` if none)."""
         points = np.asarray(points, dtype=float).reshape(-1, 2)
         if points.shape[0] == 0:
             return math.inf
+        if self.name == "polygon":
+            return float(polygon_distance(self.outline, points).min())
         gaps = np.hypot(points[:, None, 0] - self.centres[None, :, 0],
                         points[:, None, 1] - self.centres[None, :, 1]) - self.radii[None, :]
         return float(gaps.min())
@@ -129,8 +170,7 @@ class BodyModel:
 
     def boundary(self) -> tuple[np.ndarray, np.ndarray]:
         """Samples of the outline and their outward unit normals, ``(S, 2)`` each [m]."""
-        return _boundary(self.outline.tobytes() if self.outline is not None else b"",
-                         float(self.radii[0]) if self.outline is None else 0.0)
+        return _boundary(*self.key)
 
     def area_excess(self) -> float:
         """Area of the disks' union outside the outline, as a fraction of the outline's area."""

@@ -42,7 +42,7 @@ MAX_GENERATION_ROUNDS = 8
 #: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
 #: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
-BODIES = ("disk", "cover")
+BODIES = ("disk", "polygon", "cover")
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,8 @@ class CBFConfig:
             ``0.02 m + 2 noise_std + 1 m x angle_increment``.
         lookahead: distance of the control points ahead of the disk centres [m]; default
             0.1 m for the single disk (whose centre turning does not move), 0 for a cover.
-        body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the footprint).
+        body: ``"disk"`` (the circumscribed disk), ``"polygon"`` (the exact convex footprint) or
+            ``"cover"`` (``n_disks`` disks covering the footprint).
         n_disks: disks of the cover (default 3).
         solver: QP back-end name (``"daqp"``, ``"quadprog"``, ``"osqp"``, any qpsolvers solver;
             case-insensitive).
@@ -74,6 +75,11 @@ class CBFConfig:
             acceleration limit). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
+        smoothing: weight of the change from the previous command in the QP's cost, relative to
+            the change from the nominal (0 = none); it damps chatter when the filter intervenes and
+            changes neither the feasible set nor the answer when ``u_nom`` is safe.
+        deadlock_time: how long the commands may stall while the nominal asks to move before the
+            result reports a deadlock [s] (see :class:`~safenav.filters.base.Deadlock`).
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first
             (see :meth:`SafetyFilter.current_frame`).
@@ -94,6 +100,8 @@ class CBFConfig:
     time_constant: float = 0.0
     memory_range: float | None = None
     memory_capacity: int = 4000
+    smoothing: float = 0.0
+    deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
 
@@ -121,6 +129,8 @@ class CBFConfig:
         if self.memory_range is not None:
             _checks.positive(name + "memory_range", self.memory_range)
         _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.number(name + "smoothing", self.smoothing, low=0.0, high=100.0)
+        _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
 
@@ -133,7 +143,8 @@ class CBFConfig:
             far_gamma=max(gamma, self.far_gamma if self.far_gamma is not None else 1.0),
             margin=self.margin if self.margin is not None else default_margin(robot),
             lookahead=self.lookahead if self.lookahead is not None else (
-                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),
+                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),   # the polygon and the
+            # cover steer without one: their points off the base origin move sideways when the robot turns
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
         )
@@ -150,6 +161,7 @@ class _Problem(NamedTuple):
     upper: np.ndarray
     velocity: np.ndarray | None
     limits: tuple[np.ndarray, np.ndarray]   # the command's box (velocity limits and reachability)
+    clearance: float            # distance from the body to the nearest point [m]
 
 
 class CBFSafetyFilter(SafetyFilter):
@@ -234,15 +246,33 @@ class CBFSafetyFilter(SafetyFilter):
         self.config = base_config.resolve(robot, dt)
         cfg = self.config
         self.margin = float(cfg.margin)
-        body = BodyModel.cover(robot, cfg.n_disks) if cfg.body == "cover" else BodyModel.disk(robot)
+        body = {"disk": BodyModel.disk, "polygon": BodyModel.polygon,
+                "cover": lambda spec: BodyModel.cover(spec, cfg.n_disks)}[cfg.body](robot)
         super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
-                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant)
+                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
+                         deadlock_time=cfg.deadlock_time)
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self.lookahead = float(cfg.lookahead)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
+        self._polygon = self.body.outline if self.body.name == "polygon" else None
+        if self._polygon is not None:
+            vertices = np.hypot(self._polygon[:, 0], self._polygon[:, 1])
+            edge = np.roll(self._polygon, -1, axis=0) - self._polygon
+            normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.hypot(edge[:, 0], edge[:, 1])[:, None]
+            inradius = float(np.min(np.einsum("ij,ij->i", normal, self._polygon)))   # origin to the nearest edge
+            self._arm = float(vertices.max())          # the farthest body point [m]
+            # Bounds for the cut before any trigonometry: H <= |o_min| - inradius - margin, h(o) >= |o| - R - margin.
+            self._extent = (-inradius - self.margin, self._arm + self.margin)
+        else:
+            control = self.body.centres + np.array([self.lookahead, 0.0])
+            control_distance = np.hypot(control[:, 0], control[:, 1])
+            self._arm = float(np.max(control_distance))   # the farthest control point [m]
+            radius = self.body.radii + self.lookahead + self.margin
+            # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
+            self._extent = (float(np.max(control_distance - radius)), float(np.max(control_distance + radius)))
         self.backend: QPBackend = make_backend(cfg.solver)
 
     def __repr__(self) -> str:
@@ -263,50 +293,109 @@ class CBFSafetyFilter(SafetyFilter):
         robot, body = self.robot, self.body
         lower, upper = robot.velocity_bounds(velocity, period if velocity is not None else None)
         kappa = 0.5 * robot.omega_max * period
-        geo = families.geometry(view.points, view.uncertainty, body.centres, body.radii, self.lookahead,
-                                self.margin, kappa)
-        disks = body.n_disks
-        per_point = geo.barrier.reshape(-1, disks).min(axis=1) if geo.barrier.size else np.empty(0)
-        min_barrier = float(per_point.min()) if per_point.size else math.inf
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
-        if cut and geo.barrier.size:
-            keep = geo.barrier <= self._binding_reach(lower, upper, velocity, min_barrier, period, reaction)
-            geo = families.Geometry(*(array[keep] for array in geo))
+        points, uncertainty = view.points, view.uncertainty
+        distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+        clearance = self._clearance(points, distance)
+        if cut and points.shape[0]:
+            # Before any trigonometry: a point farther from the base than the reach of every row plus the
+            # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
+            ceiling = float(np.min(distance - uncertainty)) + self._extent[0]
+            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
+            near = distance - uncertainty <= reach + self._extent[1]
+            if not near.all():
+                points, uncertainty = points[near], uncertainty[near]
+        if self._polygon is not None:
+            kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+
+            def polygon_limit(smallest: float) -> np.ndarray:
+                return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
+
+            geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
+                                                       polygon_limit if cut else None)
+        else:
+            def limit(smallest: float) -> float:
+                return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+
+            geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
+                                               self.margin, kappa, limit if cut else None)
+        min_barrier = float(per_point.min()) if per_point.size else math.inf
         barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
         obstacle = barrier
         if velocity is not None:
-            braking = families.braking_rows(geo, robot.a_max, reaction)
-            tighter = braking.h < barrier.h
-            obstacle = families.Rows(barrier.G, np.minimum(barrier.h, braking.h), barrier.point,
-                                     np.where(tighter, braking.family, barrier.family))
-            sweep = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, period, reaction)
+            # The braking and sweep rows can bind only within the braking reach (their right side, the
+            # stopping speed, exceeds every approach speed the box allows beyond it).
+            pair_distance = 0.0 if self._polygon is None else np.sqrt(points[geo.point, 0] ** 2 +
+                                                                      points[geo.point, 1] ** 2)
+            near = geo.barrier <= self._braking_reach(lower, upper, velocity, period, reaction, pair_distance)
+            close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
+            braking = families.braking_rows(close, robot.a_max, reaction)
+            h = barrier.h.copy()
+            family = barrier.family.copy()
+            index = np.flatnonzero(near)
+            tighter = braking.h < h[index]
+            h[index[tighter]] = braking.h[tighter]
+            family[index[tighter]] = braking.family[tighter]
+            obstacle = families.Rows(barrier.G, h, barrier.point, family)
+            sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction)
             obstacle = families.stack(obstacle, sweep)
             obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant))
         frontier = view.frontier
-        hard = families.stack(families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach),
-                              families.blind_rows(frontier.forward, frontier.backward))
-        rows = families.stack(obstacle, hard)
+        if frontier.points.shape[0] or frontier.forward or frontier.backward:
+            gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)
+            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward))
+            rows = families.stack(obstacle, hard)
+        else:
+            rows = obstacle
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
-        return _Problem(rows, view.points, per_point, min_barrier, np.concatenate((lower, t_low)),
-                        np.concatenate((upper, t_high)), velocity, (lower, upper))
+        return _Problem(rows, points, per_point, min_barrier, np.concatenate((lower, t_low)),
+                        np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
 
-    def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
-                       period: float, reaction: float) -> float:
-        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
+    def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
+        """Distance from the body to the nearest point [m] (``distance``: each point's from the base)."""
+        if points.shape[0] == 0:
+            return math.inf
+        body = self.body
+        if self._polygon is not None:
+            # Only points within the polygon's extent of the nearest one can be nearest to the polygon.
+            return body.clearance(points[distance <= float(distance.min()) + 2.0 * self._arm + 1e-9])
+        if body.n_disks == 1 and not body.centres.any():
+            return float(distance.min()) - float(body.radii[0])
+        # Only points near the nearest one can be nearest to some disk.
+        offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
+        return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
+
+    def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
+                        distance: float | np.ndarray = 0.0) -> float | np.ndarray:
+        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box.
+
+        For the polygon body the arc term grows with the obstacle point's ``distance`` from the
+        base origin [m] (scalar or per point); for disks it does not.
+        """
         speed = max(abs(lower[0]), abs(upper[0]))
         turn = max(abs(lower[1]), abs(upper[1]))
         if velocity is not None:
             speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
         kappa = 0.5 * self.robot.omega_max * period
-        control = self.body.centres + np.array([self.lookahead, 0.0])
-        arm = float(np.max(np.hypot(control[:, 0], control[:, 1])))
-        approach = (speed + arm * turn) * (1.0 + kappa)
-        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0)
+        bound = (speed + self._arm * turn) * (1.0 + kappa)
+        return bound + kappa * turn * distance if self._polygon is not None else bound
+
+    def _braking_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
+                       reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
+        """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box."""
+        approach = self._approach_bound(lower, upper, velocity, period, distance)
+        return approach * reaction + approach**2 / (2.0 * self.robot.a_max) + 1e-9
+
+    def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
+                       period: float, reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
+        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
+        approach = self._approach_bound(lower, upper, velocity, period, distance)
+        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0) + 1e-9
         if velocity is not None:
-            reach = max(reach, approach * reaction + approach**2 / (2.0 * self.robot.a_max))
-        return reach + 1e-9
+            reach = np.maximum(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
+        return reach
 
     @staticmethod
     def _lifted(u: np.ndarray, problem: _Problem) -> np.ndarray:
@@ -316,10 +405,17 @@ class CBFSafetyFilter(SafetyFilter):
             t = np.maximum(t, np.abs(problem.velocity))
         return np.concatenate((u, t))
 
-    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
-        P = self._P
+    def _target(self, u_nom: np.ndarray) -> np.ndarray:
+        """The command the QP's cost pulls towards: ``u_nom`` clipped to the limits, blended with the
+        previous command by ``smoothing`` ((1/2)|u - u_nom|^2_W + (s/2)|u - u_previous|^2_W, up to a factor)."""
         # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
         target = np.clip(u_nom, self.robot.lower, self.robot.upper)
+        smoothing = self.config.smoothing if self._called else 0.0
+        return (target + smoothing * self._last_command) / (1.0 + smoothing) if smoothing > 0.0 else target
+
+    def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: bool = False) -> QPData:
+        P = self._P
+        target = self._target(u_nom)
         q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
         lower, upper = problem.lower, problem.upper
         abs_rows = families.abs_rows()
@@ -372,14 +468,18 @@ class CBFSafetyFilter(SafetyFilter):
         problem = self._constraints(view, velocity, period)
         rows = problem.rows
         points = problem.points
-        details: dict[str, Any] = dict(min_barrier=problem.min_barrier,
-                                       clearance=self.body.clearance(view.points))
+        details: dict[str, Any] = dict(min_barrier=problem.min_barrier, clearance=problem.clearance)
         lower, upper = problem.limits
         if (lower[0] <= u_nom[0] <= upper[0] and lower[1] <= u_nom[1] <= upper[1]
                 and (rows.G @ self._lifted(u_nom, problem) <= rows.h).all()):
             return FilterResult(u=u_nom, u_nom=u_nom, status=FilterStatus.OK, **details)
 
         candidate = np.flatnonzero(self._prune(rows, problem))
+        if candidate.size == 0:
+            # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
+            u = np.clip(self._target(u_nom), lower, upper)
+            return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK, reason=self._binding(
+                u, u_nom, rows, np.full(len(rows), -np.inf), points, problem), **details)
         cand = rows.take(candidate)
         direct_rows = min(self.backend.direct_rows, DIRECT_ROWS)
         if candidate.size <= direct_rows:

@@ -62,44 +62,64 @@ def body_clearance(points: np.ndarray, body_radius: float) -> float:
     return float(np.hypot(points[:, 0], points[:, 1]).min()) - body_radius if len(points) else math.inf
 
 
-def obstacle_beams(scan: LaserScan, body_radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Beams that give an obstacle point, and the range to put it at [m], for a body of ``body_radius``.
+def obstacle_beams(scan: LaserScan, body: BodyModel | float) -> tuple[np.ndarray, np.ndarray]:
+    """Beams that give an obstacle point, and the range to put it at [m], for ``body``.
 
     ``HIT`` beams keep their range. A ``TOO_CLOSE`` beam (``-inf``) says an object is closer
-    than ``range_min``, maybe touching the body: it is put where the beam leaves the disk of
-    ``body_radius`` around the base origin, or at ``range_min`` if that is nearer. A filter
-    then sees the robot as inside its margin and backs out of the lidar's blind zone instead
-    of trusting a clearance it cannot measure (a lidar whose ``range_min`` exceeds the body
-    radius plus the margin cannot see the margin).
+    than ``range_min``, maybe touching the body: it is put where the beam leaves the body's
+    outline (the footprint polygon, or the disk; a number is the radius of a disk around the
+    base origin), or at ``range_min`` if that is nearer. A filter then sees the robot as inside
+    its margin and backs out of the lidar's blind zone instead of trusting a clearance it cannot
+    measure (a lidar whose ``range_min`` exceeds the distance to the body's edge plus the margin
+    cannot see the margin).
     """
     index, ranges = scan.obstacle_beams()
     too_close = scan.ranges[index] == -math.inf
     if too_close.any():
         geometry = scan.geometry
-        mx, my = scan.mount.x, scan.mount.y
-        cos, sin = geometry.cos_base[index[too_close]], geometry.sin_base[index[too_close]]
-        along = mx * cos + my * sin
-        inside = body_radius**2 - (mx * mx + my * my)
-        if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
-            exit_range = -along + np.sqrt(along**2 + inside)
-            ranges[too_close] = np.minimum(ranges[too_close], exit_range)
+        origin = np.array([scan.mount.x, scan.mount.y])
+        beams = index[too_close]
+        direction = np.column_stack((geometry.cos_base[beams], geometry.sin_base[beams]))
+        outline = None if not isinstance(body, BodyModel) else body.outline
+        if outline is None:
+            radius = body if not isinstance(body, BodyModel) else float(body.radii[0])
+            along = direction @ origin
+            inside = radius**2 - float(origin @ origin)
+            if inside > 0.0:  # the laser is inside the body disk: every beam leaves it at one range
+                ranges[too_close] = np.minimum(ranges[too_close], -along + np.sqrt(along**2 + inside))
+        else:
+            ranges[too_close] = np.minimum(ranges[too_close], _exit_ranges(origin, direction, outline))
     return index, ranges
 
 
-def beam_points(scans: tuple[LaserScan, ...], body_radius: float, max_distance: float = math.inf
+def _exit_ranges(origin: np.ndarray, direction: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """How far rays from ``origin`` (inside the convex ``polygon``) along ``direction`` ``(K, 2)`` leave it [m]."""
+    a = polygon
+    edge = np.roll(a, -1, axis=0) - a
+    normal = np.column_stack((edge[:, 1], -edge[:, 0]))           # outward for a counter-clockwise polygon
+    depth = np.einsum("vi,vi->v", normal, a) - normal @ origin    # >= 0 while the origin is inside
+    speed = direction @ normal.T                                  # (K, V): how fast each ray nears each edge
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(speed > 1e-12, depth[None, :] / speed, np.inf)
+    return np.maximum(np.min(reach, axis=1), 0.0)
+
+
+def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_distance: float = math.inf
                 ) -> np.ndarray:
-    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m].
+    """Obstacle points of every scan in the base frame, ``(N, 2)`` [m] (``body``: see :func:`obstacle_beams`).
 
     With ``max_distance``, beams whose point cannot be within ``max_distance`` of the base
     origin (range beyond ``max_distance + |mount|``) are skipped before any trigonometry.
     """
     pieces = []
     for scan in scans:
-        index, ranges = obstacle_beams(scan, body_radius)
+        index, ranges = obstacle_beams(scan, body)
         if math.isfinite(max_distance):
             keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
             index, ranges = index[keep], ranges[keep]
         pieces.append(scan.beam_points(index, ranges))
+    if len(pieces) == 1:
+        return pieces[0]
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
@@ -136,6 +156,7 @@ class Frontier(NamedTuple):
         backward: some blind outline sample forbids translating backward (``v < 0``).
         gap_forward: some gap sample (beyond the side tolerance) is approached by ``v > 0``.
         gap_backward: likewise by ``v < 0``.
+        complete: every outline sample is covered by an informative beam now.
     """
 
     points: np.ndarray
@@ -144,6 +165,8 @@ class Frontier(NamedTuple):
     backward: bool
     gap_forward: bool
     gap_backward: bool
+    complete: bool = False
+    """Every outline sample is covered by an informative beam now (no blind side, no gap)."""
 
     @property
     def blocks_forward(self) -> bool:
@@ -161,6 +184,8 @@ class _Layout:
     beams: tuple[np.ndarray, ...]
     blind_forward: bool
     blind_backward: bool
+    clear: Frontier
+    """The answer when every beam of every source is informative (it depends on the layout only)."""
 
 
 def _layout_key(scan: LaserScan) -> tuple[float, float, int, float, float, float]:
@@ -201,7 +226,9 @@ def _layout(keys: tuple[tuple[float, float, int, float, float, float], ...], bod
     backward = bool(np.any(blind & (normals[:, 0] < -threshold) & ~comes_into_view(-1.0)))
     for array in beams:
         array.flags.writeable = False
-    return _Layout(beams, forward, backward)
+    none = np.empty((0, 2))
+    return _Layout(beams, forward, backward, Frontier(none, none, forward, backward, False, False,
+                                                      complete=not bool(blind.any())))
 
 
 def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float, side_tolerance: float
@@ -215,9 +242,9 @@ def unknown_region(scans: tuple[LaserScan, ...], body: BodyModel, max_gap: float
         side_tolerance: outline samples whose outward normal is within this angle of
             sideways do not forbid translation [rad].
     """
-    outline = body.outline
-    layout = _layout(tuple(_layout_key(scan) for scan in scans), outline.tobytes() if outline is not None else b"",
-                     float(body.radii[0]) if outline is None else 0.0, side_tolerance, body.reach)
+    layout = _layout(tuple(_layout_key(scan) for scan in scans), *body.key, side_tolerance, body.reach)
+    if all(scan.n_informative == scan.n_beams for scan in scans):
+        return layout.clear
     points, normals = body.boundary()
     covered = np.zeros(len(points), dtype=bool)
     in_view = np.zeros(len(points), dtype=bool)
@@ -243,13 +270,16 @@ class PointMemory:
 
     After each call the memory holds the obstacle points of the call's scans within
     ``max_range`` of the base origin, plus the remembered points no scan saw again. At the
-    next call everything is moved into the new base frame by the motion since then; a
-    remembered point is dropped when a current beam covers its direction and reads farther
-    (the space is seen to be free: contradicted) or about as far (the scan shows it again),
-    and kept when the beams towards it are invalid, outside every field of view, or read
-    nearer (occluded). Each carry adds the odometry's uncertainty to the point's
-    ``uncertainty`` [m], which the filters add to their margin for that point. Beyond
-    ``capacity`` points the farthest are forgotten first.
+    next call they are moved into the new base frame by the motion since then; a remembered
+    point is dropped when a current beam covers its direction and reads farther (the space is
+    seen to be free: contradicted) or about as far (the scan shows it again), and kept when the
+    beams towards it are invalid, outside every field of view, or read nearer (occluded). Each
+    carry adds the odometry's uncertainty to the point's ``uncertainty`` [m], which the filters
+    add to their margin for that point. Beyond ``capacity`` points the farthest are forgotten
+    first.
+
+    The points stay in the frame they were stored in, and the motions are composed, so carrying
+    costs nothing until the points are recalled.
 
     Args:
         max_range: points farther than this from the base origin are forgotten [m].
@@ -259,32 +289,42 @@ class PointMemory:
     def __init__(self, max_range: float, capacity: int) -> None:
         self.max_range = float(max_range)
         self.capacity = int(capacity)
-        self.points = np.empty((0, 2))
-        self.uncertainty = np.empty(0)
+        self.clear()
 
     def __len__(self) -> int:
-        return int(self.points.shape[0])
+        return int(self._points.shape[0])
 
     def clear(self) -> None:
         """Forget everything (a reset, or a scan that cannot be trusted)."""
-        self.points = np.empty((0, 2))
-        self.uncertainty = np.empty(0)
+        self._points = np.empty((0, 2))
+        self._uncertainty = np.empty(0)
+        self._frame = Pose2D()          # the current base frame in the frame the points are stored in
+        self._error = np.zeros(2)       # odometry error bound accumulated since they were stored
+
+    @property
+    def points(self) -> np.ndarray:
+        """The remembered points in the current base frame ``(M, 2)`` [m]."""
+        return self._frame.to_local(self._points) if self._points.shape[0] else self._points
+
+    @property
+    def uncertainty(self) -> np.ndarray:
+        """Their position uncertainty ``(M,)`` [m]."""
+        if not self._points.shape[0]:
+            return self._uncertainty
+        distance = np.hypot(self._points[:, 0] - self._frame.x, self._points[:, 1] - self._frame.y)
+        return self._uncertainty + self._error[0] + distance * self._error[1]
 
     def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Move the points into the new base frame, which is at ``motion`` in the old one.
+        """Account for the motion to a new base frame, which is at ``motion`` in the old one.
 
         Args:
             motion: the pose of the new base frame in the old one [m, m, rad].
             uncertainty_rate: odometry error bound ``(e_translation [m], e_rotation [rad])`` of
                 this motion; a point at distance ``d`` gains ``e_translation + d e_rotation``.
         """
-        if self.points.shape[0] == 0:
-            return
-        distance = np.hypot(self.points[:, 0], self.points[:, 1])
-        self.points = motion.to_local(self.points)
-        self.uncertainty = self.uncertainty + uncertainty_rate[0] + distance * uncertainty_rate[1]
-        keep = np.hypot(self.points[:, 0], self.points[:, 1]) <= self.max_range + self.uncertainty
-        self.points, self.uncertainty = self.points[keep], self.uncertainty[keep]
+        if self._points.shape[0]:
+            self._frame = self._frame.compose(motion)
+            self._error += uncertainty_rate
 
     def recall(self, scans: tuple[LaserScan, ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
         """The remembered points no current beam sees again or contradicts, and their uncertainty.
@@ -294,25 +334,32 @@ class PointMemory:
             tolerance: range difference within which a reading shows a remembered point again [m]
                 (beyond it, a farther reading contradicts it); the point's own uncertainty is added.
         """
+        if self._points.shape[0] == 0:
+            return np.empty((0, 2)), np.empty(0)
         points, uncertainty = self.points, self.uncertainty
-        if points.shape[0] == 0:
-            return points, uncertainty
-        keep = np.ones(points.shape[0], dtype=bool)
+        keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
             keep &= ~_seen_again(scan, points, tolerance + uncertainty)
         return points[keep], uncertainty[keep]
 
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
-        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity."""
-        points = np.vstack((current, recalled))
-        uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
-        distance = np.hypot(points[:, 0], points[:, 1])
-        keep = distance <= self.max_range
-        points, uncertainty, distance = points[keep], uncertainty[keep], distance[keep]
+        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity.
+
+        Everything else is forgotten; the points are stored in the current base frame. Without
+        recalled points the current ones are kept as they are (``current`` must not be changed
+        afterwards) and the range and capacity are applied when they are recalled.
+        """
+        if recalled.shape[0]:
+            points = np.vstack((current, recalled))
+            uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+        else:
+            points, uncertainty = current, np.zeros(current.shape[0])
         if points.shape[0] > self.capacity:
+            distance = np.hypot(points[:, 0], points[:, 1])
             order = np.argsort(distance, kind="stable")[: self.capacity]
             points, uncertainty = points[order], uncertainty[order]
-        self.points, self.uncertainty = points, uncertainty
+        self._points, self._uncertainty = points, uncertainty
+        self._frame, self._error = Pose2D(), np.zeros(2)
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> np.ndarray:

@@ -24,6 +24,7 @@ rate at which ``p_j`` approaches ``o`` is ``a_j(o) . (v, omega)`` with
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -38,6 +39,7 @@ __all__ = [
     "braking_rows",
     "gap_rows",
     "geometry",
+    "polygon_geometry",
     "ramp_corners",
     "stack",
     "stopping_speed",
@@ -47,7 +49,8 @@ __all__ = [
 FAMILIES = ("barrier", "braking", "sweep", "gap", "blind", "abs")
 """Row family names, in the order :func:`stack` keeps them."""
 HARD_FAMILIES = frozenset({"gap", "blind", "abs"})
-"""Families that slack never relaxes."""
+"""Families that slack never relaxes (the last ones of :data:`FAMILIES`)."""
+_FIRST_HARD = min(FAMILIES.index(name) for name in HARD_FAMILIES)
 
 
 class Rows(NamedTuple):
@@ -65,7 +68,7 @@ class Rows(NamedTuple):
     @property
     def hard(self) -> np.ndarray:
         """``(k,)`` mask of the rows slack may never relax."""
-        return np.isin(self.family, [FAMILIES.index(name) for name in HARD_FAMILIES])
+        return self.family >= _FIRST_HARD
 
     def __len__(self) -> int:
         return int(self.h.size)
@@ -80,9 +83,11 @@ def _rows(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: str) -> Rows:
 
 def stack(*blocks: Rows) -> Rows:
     """One block of all the rows of ``blocks``."""
-    blocks = tuple(block for block in blocks if len(block))
+    blocks = tuple(block for block in blocks if block.h.size)
     if not blocks:
         return Rows(np.empty((0, 4)), np.empty(0), np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    if len(blocks) == 1:
+        return blocks[0]
     return Rows(np.vstack([b.G for b in blocks]), np.concatenate([b.h for b in blocks]),
                 np.concatenate([b.point for b in blocks]), np.concatenate([b.family for b in blocks]))
 
@@ -100,13 +105,15 @@ class Geometry(NamedTuple):
     approach: np.ndarray
     """``(K, 2)`` ``a_j(o)``: the approach rate of the pair is ``approach . (v, omega)`` [1, m]."""
     arc: np.ndarray
-    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``."""
-    bearing: np.ndarray
-    """``(K,)`` direction of the point from the control point, relative to the heading [rad]."""
+    """``(K, 2)`` coefficients of ``(t_v, t_omega)`` bounding the arc's effect: ``kappa (1, ||p_j||)``.
+
+    The cosine of the point's bearing from the control point, relative to the heading, is
+    ``approach[:, 0]`` (``-n_x``)."""
 
 
 def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-             lookahead: float, margin: float, kappa: float) -> Geometry:
+             lookahead: float, margin: float, kappa: float,
+             limit: Callable[[float], float] | None = None) -> tuple[Geometry, np.ndarray]:
     """Barrier values and approach directions of every point against every body disk.
 
     Args:
@@ -117,25 +124,107 @@ def geometry(points: np.ndarray, uncertainty: np.ndarray, centres: np.ndarray, r
         lookahead: look-ahead distance ``l`` of the control points [m].
         margin: clearance kept between the disks and every point [m].
         kappa: arc coefficient ``omega_max dt / 2`` (see :func:`barrier_rows`).
+        limit: given the smallest barrier ``H``, the largest barrier a kept pair may have [m]
+            (pairs beyond it are dropped before their directions are computed); ``None`` keeps all.
+
+    Returns:
+        The kept pairs' geometry, and every point's smallest barrier over the disks ``(N,)`` [m].
     """
     control = centres + np.array([lookahead, 0.0])
-    dx = control[None, :, 0] - points[:, None, 0]
-    dy = control[None, :, 1] - points[:, None, 1]
-    distance = np.hypot(dx, dy)
+    count, disks = points.shape[0], control.shape[0]
+    if disks == 1:
+        dx = control[0, 0] - points[:, 0]
+        dy = control[0, 1] - points[:, 1]
+    else:
+        dx = (control[None, :, 0] - points[:, None, 0]).reshape(-1)
+        dy = (control[None, :, 1] - points[:, None, 1]).reshape(-1)
+    distance = np.sqrt(dx * dx + dy * dy)
+    pair_uncertainty = uncertainty if disks == 1 else np.repeat(uncertainty, disks)
+    offsets = radii + (lookahead + margin)
+    barrier = distance - (offsets[0] if disks == 1 else np.tile(offsets, count)) - pair_uncertainty
+    per_point = barrier if disks == 1 else barrier.reshape(count, disks).min(axis=1)
+    pair_point = np.arange(count) if disks == 1 else np.repeat(np.arange(count), disks)
+    disk = np.zeros(count, dtype=np.intp) if disks == 1 else np.tile(np.arange(disks), count)
+    if limit is not None and count:
+        keep = np.flatnonzero(barrier <= limit(float(per_point.min())))
+        dx, dy, distance, barrier, pair_point, disk = (array[keep] for array in
+                                                       (dx, dy, distance, barrier, pair_point, disk))
     degenerate = distance < 1e-9
     if degenerate.any():   # a point exactly at a control point: push it back along -x
         dx, dy, distance = np.where(degenerate, 1.0, dx), np.where(degenerate, 0.0, dy), np.where(degenerate, 1.0,
                                                                                                     distance)
+        barrier = np.where(degenerate, -offsets[disk] - pair_uncertainty[pair_point] if disks > 1
+                           else -offsets[0] - uncertainty[pair_point], barrier)
     nx, ny = dx / distance, dy / distance
-    barrier = np.where(degenerate, 0.0, distance) - (radii[None, :] + lookahead + margin + uncertainty[:, None])
-    px, py = control[None, :, 0], control[None, :, 1]
-    approach = np.stack((-nx, nx * py - ny * px), axis=-1).reshape(-1, 2)
-    reach = np.hypot(control[:, 0], control[:, 1])
-    arc = np.column_stack((np.full(control.shape[0], kappa), kappa * reach))
-    count, disks = distance.shape
-    bearing = np.arctan2(-dy, -dx).reshape(-1)
-    return Geometry(np.repeat(np.arange(count), disks), barrier.reshape(-1), approach,
-                    np.tile(arc, (count, 1)), bearing)
+    approach = np.empty((barrier.size, 2))
+    approach[:, 0] = -nx
+    approach[:, 1] = nx * control[disk, 1] - ny * control[disk, 0]
+    reach = np.sqrt(control[:, 0] ** 2 + control[:, 1] ** 2)
+    arc = np.empty((barrier.size, 2))
+    arc[:, 0] = kappa
+    arc[:, 1] = kappa * reach[disk]
+    return Geometry(pair_point, barrier, approach, arc), per_point
+
+
+def polygon_geometry(points: np.ndarray, uncertainty: np.ndarray, polygon: np.ndarray, margin: float, kappa: float,
+                     limit: Callable[[float], float] | None = None) -> tuple[Geometry, np.ndarray]:
+    """Barrier values and approach directions of every point against a convex footprint polygon.
+
+    The barrier is the signed distance from the polygon (counter-clockwise vertices, base
+    frame) to the point, minus the margin and the point's uncertainty. Seen from the body,
+    a rigid motion moves the point ``o`` by ``-dt (v - omega o_y, omega o_x)`` to first order,
+    and the signed distance to a convex set is convex in the point, so its linearisation at
+    ``o`` (gradient ``g``) is a lower bound: the approach rate is ``g . (v - omega o_y,
+    omega o_x)``, and the second-order remainder of the motion is at most
+    ``kappa dt (|v| + |o| |omega|)`` (the arc coefficient uses the point's distance ``|o|``
+    from the base origin). The rows of :func:`barrier_rows` then keep ``H(x+) >= (1 - gamma)
+    H(x)`` for the polygon exactly as for a disk.
+
+    Args:
+        points: ``(N, 2)`` obstacle points, base frame [m].
+        uncertainty: ``(N,)`` position uncertainty of each point [m].
+        polygon: ``(V, 2)`` the convex footprint, counter-clockwise [m].
+        margin: clearance kept between the polygon and every point [m].
+        kappa: arc coefficient ``omega_max dt / 2``.
+        limit: as :func:`geometry`.
+
+    Returns:
+        The kept points' geometry (one pair per point), and every point's barrier ``(N,)`` [m].
+    """
+    count = points.shape[0]
+    a = polygon
+    edge = np.roll(a, -1, axis=0) - a
+    length2 = np.einsum("ij,ij->i", edge, edge)
+    normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.sqrt(length2)[:, None]   # outward (counter-clockwise)
+    relative = points[:, None, :] - a[None, :, :]                                    # (N, V, 2)
+    t = np.clip(np.einsum("nvi,vi->nv", relative, edge) / length2, 0.0, 1.0)
+    difference = relative - t[..., None] * edge[None]                                # point minus nearest edge point
+    distance = np.sqrt(np.einsum("nvi,nvi->nv", difference, difference))
+    nearest = np.argmin(distance, axis=1)
+    rows = np.arange(count)
+    plane = np.einsum("nvi,vi->nv", relative, normal)                               # signed distance to each edge line
+    inside = np.all(plane <= 0.0, axis=1)
+    deepest = np.argmax(plane, axis=1)
+    outside_distance = distance[rows, nearest]
+    signed = np.where(inside, plane[rows, deepest], outside_distance)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gradient = np.where(inside[:, None], normal[deepest],
+                            difference[rows, nearest] / outside_distance[:, None])
+    on_boundary = ~inside & (outside_distance < 1e-12)
+    if on_boundary.any():
+        gradient[on_boundary] = normal[nearest[on_boundary]]
+    barrier = signed - margin - uncertainty
+    keep = rows
+    if limit is not None and count:
+        keep = np.flatnonzero(barrier <= limit(float(barrier.min())))
+    kept, g = points[keep], gradient[keep]
+    approach = np.empty((keep.size, 2))
+    approach[:, 0] = g[:, 0]
+    approach[:, 1] = g[:, 1] * kept[:, 0] - g[:, 0] * kept[:, 1]
+    arc = np.empty((keep.size, 2))
+    arc[:, 0] = kappa
+    arc[:, 1] = kappa * np.sqrt(kept[:, 0] ** 2 + kept[:, 1] ** 2)
+    return Geometry(keep, barrier[keep], approach, arc), barrier
 
 
 def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
@@ -217,12 +306,16 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
     """
     sweep = (abs(velocity[1]) + alpha * dt) * (abs(velocity[0]) / accel + reaction)
     limit = stopping_speed(geo.barrier, accel, reaction)
+    forward = geo.approach[:, 0]                 # cos of the bearing from the control point
     blocks = []
-    for sign, off_axis in ((1.0, np.abs(geo.bearing)), (-1.0, math.pi - np.abs(geo.bearing))):
-        effective = np.maximum(off_axis - sweep, 0.0)
-        inside = np.flatnonzero(effective < 0.5 * math.pi - 1e-6)
+    for sign, cosine in ((1.0, forward), (-1.0, -forward)):
+        # cos(max(acos(cosine) - sweep, 0)), without trigonometry per point
+        effective = np.where(cosine >= math.cos(min(sweep, math.pi)), 1.0,
+                             cosine * math.cos(sweep) + np.sqrt(np.maximum(1.0 - cosine * cosine, 0.0)) *
+                             math.sin(sweep))
+        inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(cosine.size)
         G = np.zeros((inside.size, 4))
-        G[:, 0] = sign * np.cos(effective[inside])
+        G[:, 0] = sign * np.minimum(effective[inside], 1.0)
         G[:, 2:] = geo.arc[inside]
         blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
     return stack(*blocks)

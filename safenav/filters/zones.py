@@ -21,8 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from safenav import _checks
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
+from safenav.filters.body import inside_polygon
 from safenav.robot import RobotSpec
 
 __all__ = ["ZonesConfig", "ZonesFilter", "inflate_footprint"]
@@ -71,6 +73,8 @@ class ZonesConfig:
         scan_timeout: scans older than this stop the robot [s] (Nav2's ``source_timeout``).
         use_footprint: grow the footprint polygon instead of the body disk (the disk is the
             body the other filters and the simulator's truth use, so it is the default).
+        deadlock_time: how long the commands may stall while the nominal asks to move before the
+            result reports a deadlock [s].
     """
 
     stop_distance: float = 0.05
@@ -79,19 +83,20 @@ class ZonesConfig:
     min_points: int = 3
     scan_timeout: float = 0.5
     use_footprint: bool = False
+    deadlock_time: float = 1.5
 
     def __post_init__(self) -> None:
-        for name in ("stop_distance", "slowdown_distance", "slowdown_ratio", "scan_timeout"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise InvalidConfig(f"ZonesConfig.{name} must be a finite number >= 0, got {value!r}")
+        name = "ZonesConfig."
+        for field in ("stop_distance", "slowdown_distance"):
+            _checks.number(name + field, getattr(self, field), low=0.0)
+        _checks.number(name + "slowdown_ratio", self.slowdown_ratio, low=0.0, high=1.0)
+        _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         if self.slowdown_distance < self.stop_distance:
             raise InvalidConfig(f"ZonesConfig.slowdown_distance={self.slowdown_distance!r} must be >= "
                                 f"stop_distance={self.stop_distance!r}")
-        if self.slowdown_ratio > 1.0:
-            raise InvalidConfig(f"ZonesConfig.slowdown_ratio must be in [0, 1], got {self.slowdown_ratio!r}")
-        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or self.min_points < 1:
-            raise InvalidConfig(f"ZonesConfig.min_points must be an integer >= 1, got {self.min_points!r}")
+        _checks.integer(name + "min_points", self.min_points, low=1)
+        _checks.boolean(name + "use_footprint", self.use_footprint)
+        _checks.positive(name + "deadlock_time", self.deadlock_time)
 
 
 class ZonesFilter(SafetyFilter):
@@ -115,22 +120,18 @@ class ZonesFilter(SafetyFilter):
 
     def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: ZonesConfig | None = None, **overrides: Any):
         config = ZonesConfig(**{**(config.__dict__ if config else {}), **overrides})
-        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=False, memory_capacity=0)
+        super().__init__(robot, dt, scan_timeout=config.scan_timeout, compensate_latency=False, memory_capacity=0,
+                         deadlock_time=config.deadlock_time)
         self.config = config
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
         self.slowdown_polygon = inflate_footprint(robot, config.slowdown_distance, disk=disk)
-        from matplotlib.path import Path  # here, not at import: only this filter needs matplotlib
-
-        self._stop = Path(self.stop_polygon)
-        self._slowdown = Path(self.slowdown_polygon)
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         points = view.points[: view.n_current]   # like the collision monitor: the current scans only
         clearance = self.body.clearance(points)
-        in_slowdown = self._slowdown.contains_points(points) if len(points) else np.zeros(0, dtype=bool)
-        near = points[in_slowdown]
-        in_stop = self._stop.contains_points(near) if len(near) else np.zeros(0, dtype=bool)
+        near = points[inside_polygon(self.slowdown_polygon, points)]
+        in_stop = inside_polygon(self.stop_polygon, near)
         reason = None
         if int(in_stop.sum()) >= self.config.min_points:
             u = np.zeros(2)

@@ -450,16 +450,21 @@ REAL_COMMANDS = [(1.0, 0.0), (0.3, 1.5), (-0.4, -0.5), (0.0, 3.0)]
 @pytest.mark.parametrize("name", ["carmen-intel", "carmen-freiburg-079", "carmen-csail", "breezyslam-exp1",
                                   "breezyslam-exp2", "laser-scan-matcher-bag"])
 def test_every_real_scan_filters_without_error_nan_or_solver_fallback(lidar_data, name):
+    from safenav import LidarSpec, Pose2D
     from safenav.datasets import load_recording, recording_files, resample
 
     recording = load_recording(recording_files(lidar_data)[name])
-    robot = preset("rosbot")
-    filt = CBFSafetyFilter(robot, DT)
+    first = recording[0].scan
+    recorded = preset("rosbot").replace(lidar=LidarSpec.from_scan(first, mount=None if first.mount_given else Pose2D()))
+    resampled_robot = preset("rosbot")
+    resampled_robot = resampled_robot.replace(lidar=LidarSpec.from_scan(resample(first, resampled_robot.lidar)))
+    filters = {False: CBFSafetyFilter(recorded, DT), True: CBFSafetyFilter(resampled_robot, DT)}
     statuses: dict[FilterStatus, int] = {}
     for index, record in enumerate(recording):
         scan = record.scan
         if index % 10 == 0:   # also through the ROSbot's own convention (beam 0 forward, -pi..pi)
-            scan = resample(scan, robot.lidar)
+            scan = resample(scan, resampled_robot.lidar)
+        filt = filters[index % 10 == 0]
         for command_index, u_nom in enumerate(REAL_COMMANDS):
             velocity = (0.5, 0.0) if (index + command_index) % 2 else None
             result = filt.filter(u_nom, scan, velocity=velocity)

@@ -148,10 +148,12 @@ def test_non_finite_velocity_brakes_with_bad_input(make):
 
 @pytest.mark.parametrize("make", FILTERS)
 def test_single_beam_and_huge_scans_are_filtered(make):
-    robot = preset("rosbot")
-    filt = make(robot)
+    from safenav import LidarSpec
+
     single = LaserScan(angle_min=0.0, angle_max=0.0, angle_increment=0.01, range_min=0.1, range_max=10.0,
                        ranges=[0.6])
+    robot = preset("rosbot").replace(lidar=LidarSpec.from_scan(single, mount=(0.0, 0.0, 0.0)))
+    filt = make(robot)
     result = filt.filter((0.5, 0.0), single)
     assert_safe_command(result, robot)
     assert result.u[0] <= 1e-12   # one beam sees almost nothing: forward motion is into the unknown
@@ -159,6 +161,8 @@ def test_single_beam_and_huge_scans_are_filtered(make):
     rng = np.random.default_rng(0)
     huge = LaserScan(angle_min=-math.pi, angle_max=math.pi - 2 * math.pi / n, angle_increment=2 * math.pi / n,
                      range_min=0.1, range_max=10.0, ranges=rng.uniform(0.5, 5.0, n))
+    robot = preset("rosbot").replace(lidar=LidarSpec.from_scan(huge, mount=(0.0, 0.0, 0.0)))
+    filt = make(robot)
     result = filt.filter((0.5, 0.3), huge)
     assert_safe_command(result, robot)
     assert result.status in (FilterStatus.OK, FilterStatus.RECOVERING)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from safenav import Pose2D, preset, unicycle_step
 from safenav.filters import rows as families
-from safenav.filters.body import BodyModel
+from safenav.filters.body import BodyModel, polygon_distance
 from safenav.filters.defaults import lag_fraction
 
 DT = 0.05
@@ -38,7 +38,7 @@ def pairs(draw):
 def barriers(points: np.ndarray, body: BodyModel, lookahead: float, margin: float, pose: Pose2D) -> np.ndarray:
     """Every pair's barrier with the base at ``pose`` (points fixed in the start frame)."""
     local = pose.to_local(points)
-    return families.geometry(local, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, 0.0).barrier
+    return families.geometry(local, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, 0.0)[0].barrier
 
 
 @settings(max_examples=600)
@@ -47,7 +47,7 @@ def test_barrier_rows_keep_the_discrete_time_condition_for_the_exact_unicycle(ca
     robot, body, lookahead, points, command = case
     margin = 0.03
     kappa = 0.5 * robot.omega_max * DT
-    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, kappa)
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, margin, kappa)[0]
     rows = families.barrier_rows(geo, gamma, 1.0, DT)
     z = np.concatenate((command, np.abs(command)))
     assume(np.all(rows.G @ z <= rows.h))
@@ -62,7 +62,7 @@ def test_far_gamma_bounds_each_point_loss(case, gamma, far):
     robot, body, lookahead, points, command = case
     far = max(far, gamma)
     kappa = 0.5 * robot.omega_max * DT
-    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)[0]
     rows = families.barrier_rows(geo, gamma, far, DT)
     z = np.concatenate((command, np.abs(command)))
     assume(np.all(rows.G @ z <= rows.h))
@@ -77,7 +77,7 @@ def test_ramp_corners_cover_every_base_between_the_velocity_and_the_command(case
     """Rows written at the four corners hold for every mean velocity ``u + B (w0 - u)``, ``B <= lag``."""
     robot, body, lookahead, points, command = case
     kappa = 0.5 * robot.omega_max * DT
-    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)[0]
     base = families.barrier_rows(geo, 0.2, 1.0, DT)
     velocity = np.clip(command + np.array([0.07, -0.3]), robot.lower, robot.upper)
     lag = lag_fraction(DT, time_constant)
@@ -104,7 +104,7 @@ def test_braking_rows_cap_a_head_on_approach_to_one_that_stops_in_time(barrier, 
     """A point straight ahead: any speed the braking row allows stops within the barrier (reaction, then braking)."""
     centres, radii = np.zeros((1, 2)), np.array([0.2])
     point = np.array([[0.2 + 0.03 + barrier, 0.0]])
-    geo = families.geometry(point, np.zeros(1), centres, radii, 0.0, 0.03, 0.0)
+    geo = families.geometry(point, np.zeros(1), centres, radii, 0.0, 0.03, 0.0)[0]
     rows = families.braking_rows(geo, accel, dt + lag)
     allowed = float(rows.h[0] / rows.G[0, 0])   # the row is v * 1 <= h
     travelled = allowed * (dt + lag) + allowed**2 / (2.0 * accel)
@@ -117,7 +117,7 @@ def test_sweep_rows_cap_the_speed_towards_points_the_heading_can_swing_to(bearin
     robot = preset("rosbot")
     velocity = np.array([speed, turn])
     point = np.array([[distance * math.cos(bearing), distance * math.sin(bearing)]])
-    geo = families.geometry(point, np.zeros(1), np.zeros((1, 2)), np.array([robot.radius]), 0.0, 0.03, 0.0)
+    geo = families.geometry(point, np.zeros(1), np.zeros((1, 2)), np.array([robot.radius]), 0.0, 0.03, 0.0)[0]
     reaction = DT
     rows = families.sweep_rows(geo, velocity, robot.a_max, robot.alpha_max, DT, reaction)
     sweep = (abs(turn) + robot.alpha_max * DT) * (speed / robot.a_max + reaction)
@@ -166,5 +166,43 @@ def test_blind_rows_forbid_exactly_the_blocked_directions():
     assert both.G.tolist() == [[1.0, 0.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0]] and both.h.tolist() == [0.0, 0.0]
     assert len(families.blind_rows(False, False)) == 0
     assert np.all(both.hard) and not np.any(families.barrier_rows(
-        families.geometry(np.array([[1.0, 0.0]]), np.zeros(1), np.zeros((1, 2)), np.array([0.2]), 0.0, 0.0, 0.0),
+        families.geometry(np.array([[1.0, 0.0]]), np.zeros(1), np.zeros((1, 2)), np.array([0.2]), 0.0, 0.0, 0.0)[0],
         0.5, 1.0, DT).hard)
+
+
+@st.composite
+def polygon_pairs(draw):
+    """Random points outside a footprint polygon, and a command."""
+    robot = preset(draw(st.sampled_from(["rosbot", "m2wr"])))
+    body = BodyModel.polygon(robot)
+    count = draw(st.integers(1, 20))
+    points = np.array([[draw(st.floats(-2, 2, **finite)), draw(st.floats(-2, 2, **finite))] for _ in range(count)])
+    assume(body.clearance(points) > 0.005)
+    command = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
+    return robot, body, points, command
+
+
+@settings(max_examples=600)
+@given(polygon_pairs(), st.floats(0.01, 1.0))
+def test_polygon_barrier_rows_keep_the_condition_for_the_exact_unicycle(case, gamma):
+    """The point-to-polygon barrier: rows that hold give H(x+) >= (1 - gamma) H(x), turning included."""
+    robot, body, points, command = case
+    kappa = 0.5 * robot.omega_max * DT
+    geo, _ = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.03, kappa)
+    rows = families.barrier_rows(geo, gamma, 1.0, DT)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    moved = unicycle_step(Pose2D(), *command, DT).to_local(points)
+    _, after = families.polygon_geometry(moved, np.zeros(len(points)), body.outline, 0.03, kappa)
+    assert after.min() >= (1.0 - gamma) * geo.barrier.min() - 1e-9
+
+
+@settings(max_examples=300)
+@given(polygon_pairs())
+def test_polygon_geometry_is_the_signed_distance_and_its_gradient(case):
+    _, body, points, _ = case
+    geo, barrier = families.polygon_geometry(points, np.zeros(len(points)), body.outline, 0.0, 0.0)
+    np.testing.assert_allclose(barrier, polygon_distance(body.outline, points), atol=1e-12)
+    step = 1e-6   # the gradient, by finite differences along it
+    gradient_x = (polygon_distance(body.outline, points + np.array([step, 0.0])) - barrier) / step
+    np.testing.assert_allclose(geo.approach[:, 0], gradient_x, atol=1e-4)

@@ -61,6 +61,8 @@ class MPCConfig:
             command within the period). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
+        deadlock_time: how long the commands may stall while the nominal asks to move before the
+            result reports a deadlock [s].
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first.
     """
@@ -81,6 +83,7 @@ class MPCConfig:
     time_constant: float = 0.0
     memory_range: float | None = None
     memory_capacity: int = 4000
+    deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
 
@@ -109,6 +112,7 @@ class MPCConfig:
         if self.memory_range is not None:
             _checks.positive(name + "memory_range", self.memory_range)
         _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
 

@@ -146,7 +146,8 @@ class MPCSafetyFilter(SafetyFilter):
         super().__init__(robot, dt, body=BodyModel.disk(robot), scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
-                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant)
+                         memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
+                         deadlock_time=cfg.deadlock_time)
         dt = self.dt
         lidar = robot.lidar
         self.model = BaseModel(dt, cfg.time_constant)

@@ -1,0 +1,273 @@
+"""A way out of deadlocks, as a wrapper around any safety filter; its commands pass through that filter.
+
+Barrier filters have stable equilibria at obstacle boundaries: a nominal that aims straight
+through an obstacle is stopped, not deflected, when the geometry is symmetric (Reis et al.,
+2020), and a predictive filter brakes in front of it. The wrapped filter reports such a
+stall as :attr:`~safenav.filters.FilterResult.deadlock`; :class:`Escape` then replaces the
+nominal by an escape command until the nominal's way is clear again:
+
+1. **Side, once per deadlock.** The side (left or right) of the blocking obstacle with more
+   free space, measured on the scan; when both are free the side the nominal turns to.
+2. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
+   with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
+   towards the chosen side when something is ahead, or when the filter blocks the following.
+3. **Back out** when forward is blocked and the rear is seen and free.
+4. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance`` over the
+   body's width plus the margins, either in the direction the robot was heading when the
+   deadlock began (tracked by integrating the commands: a bug algorithm's "m-line"), or in the
+   direction of the nominal's own arc over one second when it drives forward; or after
+   ``max_time`` (the next deadlock then tries the other side). "Clear" means no current or
+   remembered point in the corridor, with some lidar looking at least partly along it (the
+   escape decides progress only, never safety: its commands go through the filter).
+
+Every escape command goes through the wrapped filter exactly like a nominal would, so the
+safety guarantee is the wrapped filter's, untouched; only progress depends on the escape.
+The result keeps the original nominal as ``u_nom``, reports what the escape does in
+:attr:`~safenav.filters.FilterResult.escape` and the reason family ``"escape"``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from safenav import _checks
+from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, as_scans, progress
+from safenav.geometry import wrap_angle
+from safenav.robot import RobotSpec, as_command
+from safenav.scan import LaserScan
+
+__all__ = ["Escape", "EscapeConfig"]
+
+#: How long the filter may block the escape's own commands before it turns in place instead [s].
+STALLED_ESCAPE = 0.3
+
+
+@dataclass(frozen=True)
+class EscapeConfig:
+    """Settings of :class:`Escape`.
+
+    Attributes:
+        speed: forward speed while following an obstacle, as a fraction of ``v_max``.
+        turn: largest yaw rate while escaping, as a fraction of ``omega_max``.
+        follow_distance: distance kept from the followed obstacle beyond the filter's margin [m].
+        clear_distance: how far the nominal's direction must be clear to hand back [m].
+        min_time: shortest escape [s] (hysteresis against flipping back at once).
+        max_time: longest escape [s]; the next deadlock tries the other side.
+        back_time: how long to back out when forward is blocked and the rear is free [s].
+        side_memory: a deadlock within this time after an escape ended keeps its side [s]
+            (hysteresis: the robot keeps going round the same obstacle).
+    """
+
+    speed: float = 0.4
+    turn: float = 0.6
+    follow_distance: float = 0.15
+    clear_distance: float = 1.0
+    min_time: float = 1.0
+    max_time: float = 20.0
+    back_time: float = 0.6
+    side_memory: float = 5.0
+
+    def __post_init__(self) -> None:
+        name = "EscapeConfig."
+        _checks.number(name + "speed", self.speed, low=0.0, high=1.0, low_open=True)
+        _checks.number(name + "turn", self.turn, low=0.0, high=1.0, low_open=True)
+        _checks.positive(name + "follow_distance", self.follow_distance)
+        _checks.positive(name + "clear_distance", self.clear_distance)
+        _checks.number(name + "min_time", self.min_time, low=0.0)
+        _checks.positive(name + "max_time", self.max_time)
+        _checks.number(name + "back_time", self.back_time, low=0.0)
+        _checks.number(name + "side_memory", self.side_memory, low=0.0)
+
+
+class Escape:
+    """Wrap a safety filter with a deadlock escape (see the module docstring).
+
+    Has the filter interface (``filter``, ``__call__``, ``reset``, ``robot``, ``dt``,
+    ``margin``, ``name``), so it can stand wherever a filter does.
+
+    Args:
+        inner: the safety filter every command goes through.
+        config: settings; keyword arguments override its fields.
+    """
+
+    def __init__(self, inner: SafetyFilter, *, config: EscapeConfig | None = None, **overrides: Any) -> None:
+        if not isinstance(inner, SafetyFilter):
+            raise _checks.InvalidConfig(f"Escape wraps a SafetyFilter, got {inner!r}")
+        self.inner = inner
+        self.config = dataclasses.replace(config or EscapeConfig(), **overrides)
+        self.name = f"{inner.name}+escape"
+        self._side = 0          # +1 left, -1 right, 0 not escaping
+        self._elapsed = 0.0
+        self._backing = 0.0
+        self._last_side = 0
+        self._turned = 0.0      # heading change since the deadlock began [rad]
+        self._since = math.inf  # time since the last escape ended [s]
+        self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
+
+    @property
+    def robot(self) -> RobotSpec:
+        return self.inner.robot
+
+    @property
+    def dt(self) -> float:
+        return self.inner.dt
+
+    @property
+    def margin(self) -> float:
+        return self.inner.margin
+
+    @property
+    def escaping(self) -> bool:
+        """Whether the escape has replaced the nominal."""
+        return self._side != 0
+
+    def __repr__(self) -> str:
+        return f"Escape({self.inner!r})"
+
+    def reset(self) -> None:
+        """Forget the escape and reset the wrapped filter."""
+        self.inner.reset()
+        self._side, self._elapsed, self._backing, self._last_side, self._turned = 0, 0.0, 0.0, 0, 0.0
+        self._since, self._stalled = math.inf, 0.0
+
+    def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
+        return self.filter(u_nom, scan, **kwargs)
+
+    def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
+        """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
+        nominal = as_command(u_nom, "u_nom")
+        scans = self.inner._match(as_scans(scan))
+        points = np.vstack([s.points() for s in scans])
+        memory = self.inner.memory
+        known = points if memory is None or len(memory) == 0 else np.vstack((points, memory.points))
+        if self._side and self._should_leave(nominal, known, scans):
+            self._last_side, self._side, self._since = self._side, 0, 0.0
+        if not self._side:
+            result = self.inner.filter(nominal, scans, **kwargs)
+            self._since += result.period if math.isfinite(result.period) else self.dt
+            if result.deadlock is None or not np.all(np.isfinite(nominal)):
+                return result
+            self._start(nominal, points, result)
+        command = self._command(points, scans)
+        result = self.inner.filter(command, scans, **kwargs)
+        held = result.period if math.isfinite(result.period) else self.dt
+        self._elapsed += held
+        self._turned = float(wrap_angle(self._turned + result.u[1] * held))
+        blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
+        self._stalled = self._stalled + held if blocked else 0.0
+        side = "left" if self._side > 0 else "right"
+        doing = "backing out" if self._backing > 0.0 else \
+            f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
+        description = f"{doing}, turning {side}, for {self._elapsed:.1f} s"
+        reason = Reason("escape", f"deadlocked: {description}; command ({command[0]:.2f}, {command[1]:.2f}) sent "
+                                  f"through the {self.inner.name} filter", None if result.reason is None
+                        else result.reason.point)
+        message = str(reason) + (f"; {result.message}" if result.message else "")
+        values = {field.name: getattr(result, field.name) for field in dataclasses.fields(result)}
+        values.update(u_nom=nominal, reason=reason, message=message, escape=description, deadlock=None)
+        return FilterResult(**values)
+
+    # ------------------------------------------------------------------ the escape
+
+    def _start(self, nominal: np.ndarray, points: np.ndarray, result: FilterResult) -> None:
+        """Choose a side once for this deadlock: the freer one (the other one after a timed-out escape)."""
+        left = _free(points, 0.25 * math.pi, 0.75 * math.pi)
+        right = _free(points, -0.75 * math.pi, -0.25 * math.pi)
+        if abs(left - right) > 0.2:
+            side = 1 if left > right else -1
+        elif nominal[1] != 0.0:
+            side = 1 if nominal[1] > 0.0 else -1
+        else:
+            side = 1
+        if self._last_side and self._since <= self.config.side_memory:
+            # Still round the same obstacle: keep the side, unless that escape timed out.
+            side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
+        self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
+
+    def _command(self, points: np.ndarray, scans: tuple[LaserScan, ...]) -> np.ndarray:
+        """The escape command: follow the obstacle on the chosen side, or back out."""
+        robot, cfg = self.robot, self.config
+        side = self._side
+        speed, turn = cfg.speed * robot.v_max, cfg.turn * robot.omega_max
+        if self._backing > 0.0:
+            self._backing -= self.dt
+            return np.array([-min(cfg.speed * -robot.v_min, 0.5 * -robot.v_min) if robot.v_min < 0 else 0.0,
+                             side * 0.5 * turn])
+        keep = robot.radius + self.margin + cfg.follow_distance
+        ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
+        if ahead or self._stalled >= STALLED_ESCAPE:   # blocked ahead, or the filter blocks following
+            if robot.v_min < 0.0 and self._rear_free(scans, keep) and self._elapsed > 2.0 * cfg.min_time:
+                self._backing = cfg.back_time
+            return np.array([0.0, side * turn])          # turn towards the chosen side in place
+        if points.shape[0] == 0:
+            return np.array([speed, 0.0])
+        # Keep the nearest point on the other side at `keep`, moving along its tangent.
+        other = points[np.sign(points[:, 1]) == -side] if np.any(np.sign(points[:, 1]) == -side) else points
+        distance = np.hypot(other[:, 0], other[:, 1])
+        nearest = other[int(np.argmin(distance))]
+        bearing = math.atan2(nearest[1], nearest[0])
+        tangent = wrap_angle(bearing + side * 0.5 * math.pi)      # the obstacle stays on the other side
+        correction = float(np.clip((keep - float(distance.min())) / keep, -1.0, 1.0)) * side * 0.5
+        heading_error = float(wrap_angle(tangent + correction))
+        omega = float(np.clip(2.0 * heading_error, -turn, turn))
+        return np.array([speed * max(math.cos(heading_error), 0.2), omega])
+
+    def _rear_free(self, scans: tuple[LaserScan, ...], keep: float) -> bool:
+        for scan in scans:
+            rear = scan.sector(0.75 * math.pi, -0.75 * math.pi)
+            if rear.complete and rear.min_range > keep + 0.2:
+                return True
+        return False
+
+    def _should_leave(self, nominal: np.ndarray, points: np.ndarray, scans: tuple[LaserScan, ...]) -> bool:
+        """Whether the way is clear again (after ``min_time``), or the escape timed out.
+
+        A way is clear when some lidar sees along it now and no point, current or remembered,
+        lies in the corridor (unknown is never clear).
+        """
+        cfg, robot = self.config, self.robot
+        if self._elapsed >= cfg.max_time:
+            return True
+        if self._elapsed < cfg.min_time:
+            return False
+        width = robot.radius + self.margin + 0.05
+        spread = math.atan2(width, cfg.clear_distance)
+
+        def clear(direction: float) -> bool:
+            # A lidar sees along it (its edge beams are enough: the corridor's sides are in the memory).
+            seen = any(scan.covers(direction) for scan in scans) or any(
+                scan.coverage(direction - spread, direction + spread) > 0.0 for scan in scans)
+            return seen and not _corridor(points, direction, width, cfg.clear_distance)
+
+        if clear(-self._turned):
+            return True      # the way the robot was going when it got stuck is clear again
+        if nominal[0] <= 0.0:
+            return False
+        return clear(float(np.clip(0.5 * nominal[1], -0.5 * math.pi, 0.5 * math.pi)))   # its arc's chord over 1 s
+
+
+def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> float:
+    """Nearest obstacle distance in the base-frame sector ``[low, high]`` [m] (``horizon`` if none)."""
+    if points.shape[0] == 0:
+        return horizon
+    bearing = np.arctan2(points[:, 1], points[:, 0])
+    inside = (bearing >= low) & (bearing <= high)
+    if not inside.any():
+        return horizon
+    return min(float(np.min(np.hypot(points[inside, 0], points[inside, 1]))), horizon)
+
+
+def _corridor(points: np.ndarray, direction: float, half_width: float, length: float) -> bool:
+    """Whether any point lies in the corridor of ``half_width`` [m] along ``direction`` [rad], up to ``length``."""
+    if points.shape[0] == 0:
+        return False
+    c, s = math.cos(direction), math.sin(direction)
+    along = points[:, 0] * c + points[:, 1] * s
+    across = -points[:, 0] * s + points[:, 1] * c
+    return bool(np.any((along > 0.0) & (along < length) & (np.abs(across) < half_width)))

@@ -1,0 +1,83 @@
+"""Obstacle sources: what turns one sensor message into something the filter reads.
+
+A source subscribes to one topic of one message type and converts each message into a
+:class:`~safenav.scan.LaserScan` carrying the sensor's mount pose on the base. The node
+keeps the latest converted message per source, with its age, and brakes when any source is
+stale. :data:`SOURCE_TYPES` maps a ``<source>.type`` parameter to its class:
+
+============  ==========================  =======================================
+type          message                     conversion
+============  ==========================  =======================================
+``scan``      ``sensor_msgs/LaserScan``   :meth:`LaserScan.from_msg <safenav.scan.LaserScan.from_msg>`
+============  ==========================  =======================================
+
+A ``sensor_msgs/PointCloud2`` source joins the table when ``safenav.pointcloud`` lands
+(the wiring issue): a subclass of :class:`Source` with ``message = ("sensor_msgs",
+"PointCloud2")`` whose :meth:`~Source.convert` calls it. Transports look a source's message
+class up by :attr:`Source.message`, so neither transport changes.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+from types import MappingProxyType, SimpleNamespace
+from typing import TYPE_CHECKING, Any
+
+from safenav.scan import LaserScan
+
+if TYPE_CHECKING:
+    from safenav.ros.params import SourceConfig
+
+__all__ = ["SOURCE_TYPES", "ScanSource", "Source"]
+
+
+class Source(abc.ABC):
+    """One obstacle source (a topic of one sensor), converting its messages for the filter.
+
+    Args:
+        config: the source's topic, mount pose and timeout.
+    """
+
+    message: tuple[str, str]
+    """ROS package and message name the source subscribes to, e.g. ``("sensor_msgs", "LaserScan")``."""
+
+    def __init__(self, config: SourceConfig) -> None:
+        self.config = config
+
+    @abc.abstractmethod
+    def convert(self, msg: Any) -> LaserScan:
+        """The message as a scan in the sensor frame, with the source's mount.
+
+        Raises:
+            InvalidScan: the message is malformed (the error names the field).
+        """
+
+
+class ScanSource(Source):
+    """A ``sensor_msgs/LaserScan`` topic (REP-117 readings; the mount from the parameters).
+
+    The scan's ``frame_id`` is the source's name: the node's robot describes each source as
+    the lidar of that frame (:meth:`safenav.robot.RobotSpec.match_scan`).
+    """
+
+    message = ("sensor_msgs", "LaserScan")
+
+    def convert(self, msg: Any) -> LaserScan:
+        return LaserScan.from_msg(_Renamed(msg, self.config.name), mount=self.config.mount)
+
+
+class _Renamed:
+    """``msg`` seen with ``header.frame_id`` replaced (its stamp kept), without copying its data."""
+
+    def __init__(self, msg: Any, frame_id: str) -> None:
+        self._msg = msg
+        header = getattr(msg, "header", None)
+        self.header = SimpleNamespace(stamp=getattr(header, "stamp", None), frame_id=frame_id)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._msg, name)
+
+
+SOURCE_TYPES: Mapping[str, type[Source]] = MappingProxyType({"scan": ScanSource})
+"""Source classes by the ``<source>.type`` parameter."""

@@ -1,0 +1,269 @@
+"""The node's logic without middleware: parameters, and what a tick publishes (messages as plain objects).
+
+``SafetyCore`` reads ROS messages by their fields only, so a ``SimpleNamespace`` with the fields
+of ``sensor_msgs/LaserScan`` or ``geometry_msgs/Twist`` is a real input here, not a mock of ROS;
+the same paths run over real middleware in ``test_node.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from safenav import SafeNavError, preset
+from safenav.errors import InvalidConfig, UnknownName
+from safenav.ros import PARAMETERS, NodeConfig, SafetyCore
+from safenav.synthetic import Scene, synthetic_scan, wall
+
+ROOT = Path(__file__).resolve().parents[2]
+ROSBOT = preset("rosbot")
+
+
+def test_defaults_protect_the_rosbot_with_the_cbf_and_its_lidar_mount():
+    config = NodeConfig.from_parameters({})
+    assert (config.robot, config.filter, config.control_period) == (ROSBOT, "cbf", 0.05)
+    (source,) = config.sources
+    assert (source.name, source.topic, source.type, source.timeout) == ("scan", "scan", "scan", 0.5)
+    assert source.mount == ROSBOT.lidar.mount     # yaw pi: the ROSbot's lidar is mounted backwards
+
+
+def test_robot_overrides_filter_settings_and_sources():
+    config = NodeConfig.from_parameters({
+        "robot": "puzzlebot", "v_max": 0.3, "footprint": [0.1, 0.08, -0.1, 0.08, -0.1, -0.08, 0.1, -0.08],
+        "filter": "mpc", "mpc.horizon": 30, "cbf.margin": 0.2, "sources": ["front"], "front.topic": "/lidar/scan",
+        "front.mount": [0.1, 0.0, math.pi], "front.timeout": 0.3, "stamped": True})
+    assert config.robot.v_max == 0.3 and config.robot.radius == pytest.approx(math.hypot(0.1, 0.08))
+    assert dict(config.filter_settings) == {"horizon": 30}      # cbf.* is for another filter: ignored
+    assert config.filter_kwargs() == {"scan_timeout": 0.3, "horizon": 30}
+    (source,) = config.sources
+    assert (source.topic, tuple(source.mount), source.timeout) == ("/lidar/scan", (0.1, 0.0, math.pi), 0.3)
+    assert config.stamped
+
+
+BAD_PARAMETERS = [
+    ({"filter": "rrt"}, UnknownName, "unknown filter 'rrt'; expected one of: cbf, mpc, zones"),
+    ({"robot": "turtlebot"}, UnknownName, "unknown robot preset 'turtlebot'; expected one of: m2wr, puzzlebot, rosbot"),
+    ({"scan_timout": 1.0}, UnknownName, "unknown parameter 'scan_timout'; expected one of: "),
+    ({"cbf.gama": 0.1}, UnknownName, "unknown cbf setting 'gama'; expected one of: "),
+    ({"scan.type": "pointcloud"}, UnknownName, "unknown source type 'pointcloud'; expected one of: scan"),
+    ({"control_period": 50}, InvalidConfig, "control_period must be a duration in seconds in (0, 1], got 50"),
+    ({"scan.timeout": -1.0}, InvalidConfig, "scan.timeout must be a finite number > 0, got -1.0"),
+    ({"scan.mount": [0.0, 0.0]}, InvalidConfig, "scan.mount must be [x, y, yaw] in [m, m, rad], got [0.0, 0.0]"),
+    ({"sources": []}, InvalidConfig, "sources must be a non-empty list of names, got []"),
+    ({"sources": ["a", "a"]}, InvalidConfig, "names a source twice: ['a', 'a']"),
+    ({"stamped": "yes"}, InvalidConfig, "stamped must be True or False, got 'yes'"),
+    ({"cmd_vel_out_topic": ""}, InvalidConfig, "cmd_vel_out_topic must be a non-empty string, got ''"),
+    ({"footprint": [0.1, 0.1, 0.2]}, InvalidConfig, "footprint must be [x1, y1, x2, y2, ...] with >= 3 vertices"),
+    ({"v_max": -1.0}, InvalidConfig, "v_max must be a finite number > 0, got -1.0"),
+]
+
+
+@pytest.mark.parametrize(("parameters", "error", "message"), BAD_PARAMETERS)
+def test_bad_parameters_raise_errors_that_name_the_value(parameters, error, message):
+    with pytest.raises(error) as caught:
+        NodeConfig.from_parameters(parameters)
+    assert isinstance(caught.value, SafeNavError) and isinstance(caught.value, ValueError)
+    assert message in str(caught.value)
+
+
+def test_every_parameter_is_documented():
+    text = (ROOT / "docs" / "ros.md").read_text()
+    assert [p.name for p in PARAMETERS if f"`{p.name}`" not in text] == []
+
+
+class Recorder:
+    """The transport's outputs, kept in lists."""
+
+    def __init__(self) -> None:
+        self.commands: list[tuple[float, float]] = []
+        self.states: list = []
+        self.diagnosed: list = []
+        self.marker_sets: list = []
+
+    def command(self, u):
+        self.commands.append(u)
+
+    def state(self, state):
+        self.states.append(state)
+
+    def diagnostics(self, state):
+        self.diagnosed.append(state)
+
+    def markers(self, footprint, points, active):
+        self.marker_sets.append((footprint, points, active))
+
+
+def scan_message(distance: float | None, stamp: float | None = None) -> SimpleNamespace:
+    scan = synthetic_scan(ROSBOT, Scene.of(wall(distance=distance))) if distance else ROSBOT.scan()
+    fields = {name: getattr(scan, name) for name in ("angle_min", "angle_max", "angle_increment", "time_increment",
+                                                      "scan_time", "range_min", "range_max")}
+    header = SimpleNamespace(frame_id="laser", stamp=SimpleNamespace(sec=0, nanosec=0) if stamp is None else stamp)
+    return SimpleNamespace(header=header, ranges=list(scan.ranges), intensities=[], **fields)
+
+
+def twist(v: float, omega: float) -> SimpleNamespace:
+    return SimpleNamespace(linear=SimpleNamespace(x=v, y=0.0, z=0.0), angular=SimpleNamespace(x=0.0, y=0.0, z=omega))
+
+
+def odometry(v: float, omega: float, x: float = 0.0) -> SimpleNamespace:
+    pose = SimpleNamespace(position=SimpleNamespace(x=x, y=0.0, z=0.0),
+                           orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0))
+    return SimpleNamespace(pose=SimpleNamespace(pose=pose), twist=SimpleNamespace(twist=twist(v, omega)))
+
+
+def make_core(**parameters) -> tuple[SafetyCore, Recorder, list[str]]:
+    warnings: list[str] = []
+    core = SafetyCore(NodeConfig.from_parameters({"odom_topic": "", **parameters}), warn=warnings.append,
+                      info=lambda line: None)
+    return core, Recorder(), warnings
+
+
+def test_silent_until_a_command_arrives_then_filters_every_tick():
+    core, out, _ = make_core()
+    core.on_scan("scan", scan_message(None), 0.0)
+    assert core.tick(0.0, out).status == "idle" and out.commands == []
+    core.on_command(twist(0.5, 0.0), 0.01)
+    state = core.tick(0.05, out)
+    assert (state.status, state.published, state.intervened) == ("ok", True, False)
+    assert out.commands == [(0.5, 0.0)]                   # free space: the nominal, bit for bit
+    core.on_scan("scan", scan_message(0.4), 0.06)
+    state = core.tick(0.1, out)
+    assert state.intervened and 0.0 <= out.commands[-1][0] < 0.3 and 0.0 < state.clearance <= 0.4 - 0.1
+
+
+def test_a_stale_command_publishes_zero_once_then_nothing():
+    core, out, warnings = make_core(cmd_vel_timeout=0.2)
+    core.on_command(twist(0.5, 0.0), 0.0)
+    for k in range(10):
+        core.on_scan("scan", scan_message(None), 0.05 * k)
+        core.tick(0.05 * k, out)
+    assert out.commands[:5] == [(0.5, 0.0)] * 5 and out.commands[5:] == [(0.0, 0.0)]
+    assert core.state.status == "idle" and "0.2 s" in core.state.reason
+    assert len([w for w in warnings if "cmd_vel_in is" in w]) == 1       # logged once
+
+
+def test_stale_odometry_brakes_and_fresh_odometry_limits_the_step():
+    core, out, _ = make_core(odom_topic="odom", odom_timeout=0.2)
+    core.on_command(twist(0.5, 0.0), 0.0)
+    core.on_scan("scan", scan_message(None), 0.0)
+    assert core.tick(0.0, out).status == "stale" and out.commands == [(0.0, 0.0)]
+    core.on_odometry(odometry(0.0, 0.0), 0.01)
+    state = core.tick(0.05, out)
+    assert state.status == "ok"
+    assert out.commands[-1] == pytest.approx((ROSBOT.a_max * 0.05, 0.0))   # from rest: one period of a_max
+    state = core.tick(0.3, out)
+    assert state.status == "stale" and "odometry" in state.reason
+
+
+def test_a_header_stamp_older_than_the_timeout_is_stale_even_if_the_message_just_arrived():
+    core, out, _ = make_core()
+    core.on_command(twist(0.5, 0.0), 10.0)
+    core.on_scan("scan", scan_message(None, stamp=SimpleNamespace(sec=9, nanosec=0)), 10.0)
+    state = core.tick(10.0, out)
+    assert state.status == "stale" and "1.00 s old" in state.reason
+
+
+def test_a_non_finite_command_brakes_with_bad_input():
+    core, out, _ = make_core()
+    core.on_scan("scan", scan_message(1.0), 0.0)
+    core.on_command(twist(math.nan, 0.0), 0.0)
+    state = core.tick(0.0, out)
+    assert state.status == "bad_input" and out.commands == [(0.0, 0.0)]
+
+
+def test_state_is_json_safe_and_diagnostics_rate_limited_and_markers_optional():
+    import json
+
+    core, out, _ = make_core(markers=True)
+    for k in range(30):
+        core.on_command(twist(0.5, 0.0), 0.05 * k)
+        core.on_scan("scan", scan_message(0.4 if k < 20 else None), 0.05 * k)
+        core.tick(0.05 * k, out)
+    json.dumps([s.as_dict() for s in out.states], allow_nan=False)
+    assert [s.time for s in out.diagnosed] == [0.0, 1.0]    # once a second while the status holds
+    footprint, points, active = out.marker_sets[0]
+    assert footprint.shape == (4, 2) and len(points) and np.all(np.isin(active, points))
+
+
+def _drive_into_a_wall(core, out, seconds: float):
+    state = None
+    for k in range(round(seconds / 0.05)):
+        core.on_scan("scan", scan_message(0.39), 0.05 * k)    # a wall at the margin, straight ahead
+        core.on_command(twist(0.5, 0.0), 0.05 * k)
+        state = core.tick(0.05 * k, out)
+    return state
+
+
+def test_a_deadlock_is_reported_and_the_escape_parameter_gets_out_of_it():
+    core, out, _ = make_core()
+    state = _drive_into_a_wall(core, out, 3.0)
+    assert state.deadlock is not None and state.deadlock >= 1.0 and state.escape == "" and state.level >= 1
+    escaping, out, _ = make_core(escape=True)
+    _drive_into_a_wall(escaping, out, 3.0)
+    escapes = [s for s in out.states if s.escape]
+    assert escapes and all(s.u_nom == (0.5, 0.0) and abs(s.u[1]) > 0.1 for s in escapes)   # turning away
+    assert "following the obstacle" in escapes[0].escape
+
+
+
+def test_without_ros2_the_command_names_the_pip_line(monkeypatch, capsys):
+    import sys
+
+    from safenav.ros.cli import ros2_main
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    monkeypatch.delitem(sys.modules, "safenav.ros.ros2", raising=False)
+    assert ros2_main(["--help"]) == 2
+    assert capsys.readouterr().err.strip() == ('safenav-ros2: safenav-ros2 (the ROS 2 node) needs the optional package '
+                                               '\'rclpy\': pip install "safenav[ros2]"')
+
+
+def test_without_ros1_the_command_names_the_debian_packages(monkeypatch, capsys, tmp_path):
+    import sys
+
+    from safenav.ros.cli import ros1_main
+
+    monkeypatch.setitem(sys.modules, "rospy", None)
+    monkeypatch.delitem(sys.modules, "safenav.ros.ros1", raising=False)
+    monkeypatch.setenv("SAFENAV_ROS1_PYTHONPATH", str(tmp_path))
+    assert ros1_main(["--help"]) == 2
+    error = capsys.readouterr().err
+    assert "apt-get install ros-core python3-rospy" in error and str(tmp_path) in error
+
+
+def test_several_sources_each_with_its_mount_and_timeout():
+    front_half = preset("m2wr")      # a 180-degree lidar at x = 0.15 m, looking forward
+    core, out, _ = make_core(robot="m2wr", sources=["front", "rear"], **{
+        "front.mount": list(front_half.lidar.mount), "rear.mount": [-0.15, 0.0, math.pi], "rear.timeout": 0.2})
+    ahead = synthetic_scan(front_half, Scene.of(wall(distance=0.8)))
+    behind = front_half.scan()     # the rear lidar sees nothing within range
+    for source, scan in (("front", ahead), ("rear", behind)):
+        fields = {n: getattr(scan, n) for n in ("angle_min", "angle_max", "angle_increment", "time_increment",
+                                                "scan_time", "range_min", "range_max")}
+        core.on_scan(source, SimpleNamespace(ranges=list(scan.ranges), intensities=[], **fields), 0.0)
+    core.on_command(twist(1.0, 0.0), 0.0)
+    state = core.tick(0.0, out)
+    assert state.status == "ok" and state.intervened and out.commands[-1][0] < 1.0
+    assert 0.0 < state.clearance < 0.8 + 0.15      # the wall, seen by the front lidar 0.15 m ahead of the base
+    assert state.binding is not None
+    state = core.tick(0.3, out)     # the rear source is now older than its 0.2 s timeout
+    assert state.status == "stale" and "source 'rear'" in state.reason
+
+
+def test_a_driver_layout_is_learned_from_the_first_message_and_a_later_change_is_malformed():
+    core, out, _ = make_core()
+    other = preset("puzzlebot").lidar           # 360 beams over 0..2pi: not the ROSbot preset's layout
+    first = other.scan(np.full(other.n_beams, 2.0))
+    fields = {n: getattr(first, n) for n in ("angle_min", "angle_max", "angle_increment", "time_increment",
+                                             "scan_time", "range_min", "range_max")}
+    core.on_scan("scan", SimpleNamespace(ranges=list(first.ranges), intensities=[], **fields), 0.0)
+    core.on_command(twist(0.5, 0.0), 0.0)
+    assert core.tick(0.0, out).status == "ok"
+    assert core.robot.lidar.n_beams == 360 and core.robot.lidar.mount == ROSBOT.lidar.mount
+    core.on_scan("scan", scan_message(None), 0.05)      # now 720 beams: the driver changed under the node
+    state = core.tick(0.05, out)
+    assert state.status == "bad_message" and "720" in state.reason and out.commands[-1] == (0.0, 0.0)

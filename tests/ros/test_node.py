@@ -1,0 +1,94 @@
+"""The safety node over real middleware: braking, stale scans, ~/enable, malformed scans.
+
+The probe (``probe.py``, its own process) publishes scans of the ROSbot's lidar and a forward
+command at 20 Hz and records the node's ``cmd_vel`` and ``~/state``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.ros.graph import MIDDLEWARES
+
+CONTROL_PERIOD = 0.05
+SCAN_TIMEOUT = 0.5
+SETTLE = 0.3        # [s] after a phase starts before its outputs must show the new behaviour
+DELIVERY = 0.3      # [s] allowance for discovery-free delivery and scheduling on a loaded machine
+
+
+def _outputs_after(phase: dict, seconds: float) -> list[list[float]]:
+    return [o for o in phase["outputs"] if o[0] >= phase["begin"] + seconds]
+
+
+def _statuses(phase: dict) -> set[str]:
+    return {state["status"] for state in phase["states"]}
+
+
+@pytest.mark.parametrize("middleware", MIDDLEWARES)
+def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graphs, middleware: str,
+                                                                          tmp_path: Path) -> None:
+    """And a misspelt parameter stops another node at once with one line that names it."""
+    graph = graphs(middleware)
+    node = graph.spawn("node", params={"robot": "rosbot", "filter": "cbf", "odom_topic": "",
+                                       "scan.timeout": SCAN_TIMEOUT, "cmd_vel_timeout": 5.0,
+                                       "control_period": CONTROL_PERIOD})
+    misspelt = graph.spawn("misspelt", params={"robot": "rosbot", "scan_timout": 1.0}, node_name="misspelt")
+    out = tmp_path / "probe.json"
+    probe = graph.run("probe", [sys.executable, "tests/ros/probe.py", middleware, str(out)])
+    assert probe.wait(timeout=120) == 0, graph.log("probe") + graph.log("node")
+    phases = json.loads(out.read_text())
+    context = graph.log("node")
+
+    assert "ok" in _statuses(phases["discovery"]), context
+
+    # Free space: the nominal passes bit for bit, every period.
+    free = _outputs_after(phases["free"], SETTLE)
+    assert len(free) >= 10, context
+    assert all(o[1:] == [0.5, 0.0] for o in free)
+    assert not any(s["intervened"] for s in phases["free"]["states"] if s["t"] >= phases["free"]["begin"] + SETTLE)
+
+    # A wall 0.4 m ahead: the filter slows the forward command, and says it intervened.
+    wall = _outputs_after(phases["wall"], SETTLE)
+    assert wall and all(0.0 <= o[1] <= 0.3 for o in wall), wall
+    assert "ok" in _statuses(phases["wall"])
+    assert all(s["intervened"] for s in phases["wall"]["states"] if s["t"] >= phases["wall"]["begin"] + SETTLE)
+
+    # The scan stops: within the timeout one zero command, then silence; the state says stale.
+    stale, last_scan = phases["stale"], phases["wall"]["last_scan"]
+    zeros = [o for o in stale["outputs"] if o[1:] == [0.0, 0.0]]
+    assert len(zeros) == 1, stale["outputs"]
+    assert zeros[0][0] - last_scan <= SCAN_TIMEOUT + 2 * CONTROL_PERIOD + DELIVERY
+    assert all(o[0] <= zeros[0][0] for o in stale["outputs"])
+    assert "stale" in _statuses(stale)
+    assert any("timeout" in s["reason"] for s in stale["states"] if s["status"] == "stale")
+
+    # ~/enable false: the command passes through unchanged, with a warning in the state.
+    assert "disabled" in phases["enable_off_answer"]
+    disabled = _outputs_after(phases["disabled"], SETTLE)
+    assert disabled and all(o[1:] == [0.5, 0.0] for o in disabled)
+    assert "disabled" in _statuses(phases["disabled"])
+    assert "enabled" in phases["enable_on_answer"]
+    assert "ok" in _statuses(phases["wall_again"])
+
+    # Malformed scans brake and are reported; the node lives on and recovers.
+    for name, field in (("wrong_lengths", "ranges"), ("nan_angles", "angle_min")):
+        phase = phases[name]
+        bad = [s for s in phase["states"] if s["status"] == "bad_message"]
+        assert bad and field in bad[-1]["reason"], phase["states"][-3:]
+        assert all(o[1:] == [0.0, 0.0] for o in _outputs_after(phase, SETTLE)), phase["outputs"]
+    assert [0.0, 0.0] in [o[1:] for o in phases["wrong_lengths"]["outputs"]]
+    recovered = _outputs_after(phases["recovered"], SETTLE)
+    assert "ok" in _statuses(phases["recovered"])
+    assert recovered and all(0.0 < o[1] <= 0.3 for o in recovered)
+    assert node.poll() is None, context
+    assert context.count("braking: source 'scan': malformed message") == 2, context   # once per cause
+
+
+    assert misspelt.wait(timeout=30) == 2
+    said = [line for line in graph.log("misspelt").splitlines() if line.startswith(f"safenav-{middleware}: ")]
+    assert len(said) == 1 and said[0].startswith(f"safenav-{middleware}: unknown parameter 'scan_timout'; "
+                                                 f"expected one of: "), graph.log("misspelt")
