@@ -47,7 +47,7 @@ from safenav.experiments import (
     run_specs,
     timing_table,
 )
-from safenav.filters import FILTER_NAMES
+from safenav.filters import FILTER_NAMES, FILTERS
 from safenav.scenarios import scenario
 from safenav.sim_bullet import SimConfig
 
@@ -73,7 +73,7 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     parser.add_argument("--policies", type=names, default=None, metavar="A,B",
                         help="comma-separated nominal policies (default: every scenario's own)")
     parser.add_argument("--filters", type=names, default=None, metavar="A,B",
-                        help=f"comma-separated filters (default: {','.join(FILTER_NAMES)})")
+                        help=f"comma-separated filters of {','.join(FILTER_NAMES)} (default: {','.join(FILTERS)})")
     parser.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
     parser.add_argument("--workers", metavar="N", type=argument_type(integer, low=1), default=os.cpu_count() or 1,

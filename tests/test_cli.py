@@ -13,8 +13,10 @@ from PIL import Image
 import safenav
 from safenav import InvalidConfig, experiments
 from safenav.cli import BENCHMARKS, load_benchmark, main
+from safenav.filters import FILTER_NAMES
 
 ROOT = Path(__file__).resolve().parents[1]
+KNOWN_FILTERS = ", ".join(sorted(FILTER_NAMES))   # the filters' own table, as an unknown name lists it
 
 
 def test_safenav_help_runs_as_a_program():
@@ -48,7 +50,7 @@ def test_every_command_has_help(argv, expected, capsys, monkeypatch):
      "unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance, stop_at_wall, wall_follower"),
     (["run", "--policy", "dance"], "unknown policy 'dance'; expected one of: go_to_goal, obstacle_avoidance, "
                                    "random_walk, stop_at_wall, stop_at_wall_buggy, wall_follower"),
-    (["run", "--filter", "magic"], "unknown filter 'magic'; expected one of: cbf, mpc, none, zones"),
+    (["run", "--filter", "magic"], f"unknown filter 'magic'; expected one of: {KNOWN_FILTERS}"),
     (["run", "--world", "wall_follower", "--policy", "go_to_goal"], "needs a world with a goal"),
     (["run", "--duration", "-1"], "argument --duration: must be a finite number > 0, got -1"),
     (["run", "--seed", "-3"], "argument --seed: must be an integer >= 0, got -3"),
@@ -146,7 +148,7 @@ def test_bench_collisions_reports_bad_names_with_its_own_prefix(capsys, monkeypa
     monkeypatch.chdir(ROOT)
     assert main(["bench", "collisions", "--filters", "magic"]) == 2
     error = capsys.readouterr().err.strip()
-    assert error == "safenav bench collisions: error: unknown filter 'magic'; expected one of: cbf, mpc, none, zones"
+    assert error == f"safenav bench collisions: error: unknown filter 'magic'; expected one of: {KNOWN_FILTERS}"
 
 
 @pytest.mark.sim

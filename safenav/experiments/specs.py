@@ -13,7 +13,7 @@ from typing import Any
 
 from safenav._checks import boolean, choice, integer, positive
 from safenav.errors import InvalidConfig
-from safenav.filters import FILTER_NAMES
+from safenav.filters import FILTER_NAMES, FILTERS
 from safenav.reference import POLICY_NAMES
 from safenav.scenarios import SCENARIO_NAMES, scenario, scenario_for
 from safenav.sim_bullet import SimConfig
@@ -125,7 +125,8 @@ def matrix(scenarios: Iterable[str] | None = None, policies: Iterable[str] | Non
     Args:
         scenarios: scenario names (all of :data:`~safenav.scenarios.SCENARIO_NAMES` when ``None``).
         policies: keep only these policies (all when ``None``); a scenario keeps the ones it lists.
-        filters: filter names (all of :data:`~safenav.filters.FILTER_NAMES` when ``None``).
+        filters: filter names from :data:`~safenav.filters.FILTER_NAMES` (the plain filters of
+            :data:`~safenav.filters.FILTERS`, without the escape, when ``None``).
 
     Returns:
         The cells in table order: scenarios, then their policies, then filters.
@@ -136,7 +137,7 @@ def matrix(scenarios: Iterable[str] | None = None, policies: Iterable[str] | Non
     """
     scenario_names = _checked("scenario", scenarios, SCENARIO_NAMES)
     policy_names = None if policies is None else _checked("policy", policies, POLICY_NAMES)
-    filter_names = _checked("filter", filters, FILTER_NAMES)
+    filter_names = _checked("filter", filters, FILTER_NAMES) if filters is not None else list(FILTERS)
     cells = [Cell(name, policy, filter_name)
              for name in scenario_names
              for policy in scenario(name).policies if policy_names is None or policy in policy_names
