@@ -22,52 +22,42 @@ Run ``python -m benchmarks.collision_rates --help`` (or ``safenav bench collisio
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this checkout
+    sys.path[0] = str(Path(__file__).resolve().parents[1])
+
 import argparse
 import csv
 import os
-import sys
 import time
-from collections.abc import Sequence
-from pathlib import Path
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-
-from benchmarks.common import write_json
-from safenav.cli import positive_float, positive_int
-from safenav.errors import InvalidConfig, SafeNavError
+from benchmarks.common import names, run_cli, write_json
+from safenav._checks import argument_type, integer, positive, writable_file
 from safenav.experiments import (
-    FILTER_COLORS,
-    FILTER_LABELS,
     EpisodeOutcome,
-    available_filters,
     cell_records,
     episode_specs,
     matrix,
     outcome_table,
-    overlay_figure,
     run_specs,
     timing_table,
 )
-from safenav.filters import FILTER_NAMES
+from safenav.filters import FILTER_NAMES, FILTERS
 from safenav.scenarios import scenario
+from safenav.sim_bullet import SimConfig
 
 FULL_SEEDS = 20
 """Seeds per cell of the default sweep: 13 (scenario, policy) pairs x 4 filters x 20 = 1040 episodes, the
 fewest above 1000; sized for the 15-minute budget on the 2-core development machine."""
 
-QUICK = {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0}
+QUICK: Mapping[str, Any] = MappingProxyType(
+    {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0})
 """The ``--quick`` subset: the buggy tutorial that always crashes, a cluttered arena and a goal task."""
-
-CONTROL_DT = 0.05
-"""Control period of every episode [s] (``SimConfig``'s default)."""
-
-
-def _names(text: str) -> list[str]:
-    return [name.strip() for name in text.split(",") if name.strip()]
-
 
 def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     """The benchmark's options."""
@@ -76,18 +66,17 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true",
                         help=f"the smoke subset: scenarios {', '.join(QUICK['scenarios'])}, every filter, "
                              f"{QUICK['seeds']} seeds, {QUICK['duration']:g} s episodes (explicit options win)")
-    parser.add_argument("--seeds", metavar="N", type=positive_int, default=None,
+    parser.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=None,
                         help=f"seeds 0..N-1 per cell (default: {FULL_SEEDS}; {QUICK['seeds']} with --quick)")
-    parser.add_argument("--scenarios", type=_names, default=None, metavar="A,B",
+    parser.add_argument("--scenarios", type=names, default=None, metavar="A,B",
                         help="comma-separated scenarios (default: all)")
-    parser.add_argument("--policies", type=_names, default=None, metavar="A,B",
+    parser.add_argument("--policies", type=names, default=None, metavar="A,B",
                         help="comma-separated nominal policies (default: every scenario's own)")
-    parser.add_argument("--filters", type=_names, default=None, metavar="A,B",
-                        help=f"comma-separated filters (default: {','.join(FILTER_NAMES)}, leaving out those "
-                             "not available)")
-    parser.add_argument("--duration", metavar="T", type=positive_float, default=None,
+    parser.add_argument("--filters", type=names, default=None, metavar="A,B",
+                        help=f"comma-separated filters of {','.join(FILTER_NAMES)} (default: {','.join(FILTERS)})")
+    parser.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
-    parser.add_argument("--workers", metavar="N", type=positive_int, default=os.cpu_count() or 1,
+    parser.add_argument("--workers", metavar="N", type=argument_type(integer, low=1), default=os.cpu_count() or 1,
                         help="processes running episodes (default: one per core)")
     parser.add_argument("--json", metavar="PATH", help="write the cells and the configuration as JSON")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
@@ -101,30 +90,21 @@ def main(argv: Sequence[str] | None = None, prog: str = "collision_rates") -> in
     """Run the sweep; print the tables; write the JSON, CSV and PNGs asked for.
 
     Returns:
-        The exit code: 0, or 2 on bad usage (an unknown name, a filter not available).
+        The exit code: 0, or 2 on bad usage (an unknown name, an unwritable output).
     """
-    args = build_parser(prog).parse_args(argv)
-    try:
-        return _sweep(args)
-    except SafeNavError as error:
-        print(f"{prog}: error: {error}", file=sys.stderr)
-        return 2
+    return run_cli(build_parser(prog), argv, _sweep)
 
 
 def _sweep(args: argparse.Namespace) -> int:
     seeds = args.seeds or (QUICK["seeds"] if args.quick else FULL_SEEDS)
     duration = args.duration or (QUICK["duration"] if args.quick else None)
     scenarios = args.scenarios or (list(QUICK["scenarios"]) if args.quick else None)
-    if args.filters is None:
-        filters, missing = available_filters(FILTER_NAMES)
-        for name, reason in missing.items():
-            print(f"note: the {name!r} filter is not available ({reason}); left out")
-    else:
-        filters, missing = available_filters(args.filters)
-        if missing:
-            name, reason = next(iter(missing.items()))
-            raise InvalidConfig(f"the {name!r} filter is not available: {reason}")
-    cells = matrix(scenarios, args.policies, filters)
+    cells = matrix(scenarios, args.policies, args.filters)
+    filters = list(dict.fromkeys(cell.filter for cell in cells))
+    for what, path in (("--json", args.json), ("--csv", args.csv),
+                       ("--plots", args.plots and Path(args.plots) / "collision_rates.png")):
+        if path:
+            writable_file(what, path)
     specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
@@ -143,17 +123,16 @@ def _sweep(args: argparse.Namespace) -> int:
     print(f"{len(specs)} episodes in {wall_time:.0f} s on {args.workers} processes "
           f"({sum(o.wall_time for o in outcomes):.0f} s of episode time)")
 
-    names = sorted({cell.scenario for cell in cells}, key=[c.scenario for c in cells].index)
+    scenario_names = list(dict.fromkeys(cell.scenario for cell in cells))
     config = {
         "quick": args.quick,
         "seeds": list(range(seeds)),
-        "scenarios": names,
+        "scenarios": scenario_names,
         "policies": sorted({cell.policy for cell in cells}),
         "filters": filters,
-        "filters_unavailable": missing,
         "duration": duration,
-        "durations": {name: duration or scenario(name).duration for name in names},
-        "control_dt": CONTROL_DT,
+        "durations": {name: duration or scenario(name).duration for name in scenario_names},
+        "control_dt": SimConfig().control_dt,
         "episodes": len(specs),
         "workers": args.workers,
         "wall_time_s": wall_time,
@@ -172,8 +151,8 @@ def _sweep(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------------------- CSV
 
 
-_NESTED = {"collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"),
-           "time_to_goal": ("mean", "median")}
+_NESTED: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"), "time_to_goal": ("mean", "median")})
 """Record fields that become several CSV columns."""
 
 
@@ -207,72 +186,14 @@ def write_csv(path: str | os.PathLike[str], records: Sequence[dict[str, Any]]) -
 # ---------------------------------------------------------------------------------------------- plots
 
 
-def _figure(width: float, height: float) -> Figure:
-    figure = Figure(figsize=(width, height), dpi=110, layout="constrained")
-    FigureCanvasAgg(figure)
-    return figure
-
-
-def collision_rate_figure(records: Sequence[dict[str, Any]]) -> Figure:
-    """Grouped bars: the collision rate of each filter in each (scenario, policy) pair, with Wilson 95 % bars."""
-    pairs = list(dict.fromkeys((r["scenario"], r["policy"]) for r in records))
-    filters = list(dict.fromkeys(r["filter"] for r in records))
-    by_key = {(r["scenario"], r["policy"], r["filter"]): r for r in records}
-    figure = _figure(max(7.0, 0.75 * len(pairs) * max(len(filters), 2) / 2 + 2.0), 6.0)
-    ax = figure.add_subplot()
-    width = 0.8 / len(filters)
-    for index, name in enumerate(filters):
-        x, rate, low, high = [], [], [], []
-        for position, (scenario_name, policy) in enumerate(pairs):
-            record = by_key.get((scenario_name, policy, name))
-            if record is None:
-                continue
-            x.append(position - 0.4 + width * (index + 0.5))
-            rate.append(record["collision_rate"])
-            low.append(record["collision_rate"] - record["collision_rate_ci"][0])
-            high.append(record["collision_rate_ci"][1] - record["collision_rate"])
-            # The count above the interval, so that a zero rate still shows which filter it is.
-            ax.text(x[-1], record["collision_rate_ci"][1] + 0.015, f"{record['collisions']}/{record['episodes']}",
-                    rotation=90, ha="center", va="bottom", fontsize=6.5, color=FILTER_COLORS.get(name, "gray"))
-        ax.bar(x, rate, width, color=FILTER_COLORS.get(name, "gray"), label=FILTER_LABELS.get(name, name),
-               yerr=[low, high], capsize=2, error_kw={"elinewidth": 0.8, "ecolor": "black"})
-    episodes = sorted({r["episodes"] for r in records})
-    ax.set_xticks(range(len(pairs)), [f"{s}\n{p}" for s, p in pairs], rotation=35, ha="right", fontsize="small")
-    ax.set_ylim(0.0, 1.18)
-    ax.set_yticks(np.linspace(0.0, 1.0, 6))
-    ax.set_ylabel("collision rate (95% Wilson interval)")
-    ax.set_title(f"Collision rate by filter ({'/'.join(map(str, episodes))} episodes per bar)")
-    ax.grid(True, axis="y", linewidth=0.3, alpha=0.6)
-    ax.legend(ncols=len(filters), loc="upper center", bbox_to_anchor=(0.5, 1.0), fontsize="small")
-    return figure
-
-
-def clearance_figure(outcomes: Sequence[EpisodeOutcome], low: float = -0.1, high: float = 1.0) -> Figure:
-    """Histogram of each episode's minimum clearance, per filter (values outside [low, high] in the end bins)."""
-    filters = list(dict.fromkeys(o.spec.filter for o in outcomes))
-    bins = np.linspace(low, high, 45)
-    figure = _figure(7.5, 4.6)
-    ax = figure.add_subplot()
-    for name in filters:
-        values = np.clip([o.metrics.min_clearance for o in outcomes if o.spec.filter == name], low, high)
-        ax.hist(values, bins=bins, histtype="step", linewidth=1.6, color=FILTER_COLORS.get(name, "gray"),
-                label=f"{FILTER_LABELS.get(name, name)} ({values.size} episodes)")
-    ax.axvline(0.0, color="black", linestyle="--", linewidth=1.0)
-    ax.text(0.0, 0.98, " contact", transform=ax.get_xaxis_transform(), va="top", fontsize="small")
-    ax.set_xlabel(f"minimum body clearance in the episode [m] (clipped to [{low:g}, {high:g}])")
-    ax.set_ylabel("episodes")
-    ax.set_title("Minimum clearance per episode")
-    ax.grid(True, linewidth=0.3, alpha=0.6)
-    ax.legend(fontsize="small")
-    return figure
-
-
 def write_plots(folder: Path, records: Sequence[dict[str, Any]], outcomes: Sequence[EpisodeOutcome]) -> list[Path]:
     """Write the collision-rate bars, the clearance histogram and one trajectory overlay per scenario.
 
     Returns:
         The paths written.
     """
+    from safenav.plots import clearance_figure, collision_rate_figure, overlay_figure
+
     folder.mkdir(parents=True, exist_ok=True)
     paths = [folder / "collision_rates.png", folder / "clearance_histogram.png"]
     collision_rate_figure(records).savefig(paths[0])

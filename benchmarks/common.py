@@ -1,19 +1,52 @@
-"""Helpers shared by the benchmarks: timing statistics, tables, JSON output, machine description."""
+"""Helpers shared by the benchmarks: timing statistics, tables, JSON output, machine description.
+
+Importing this module also silences qpsolvers' advice warnings (``SparseConversionWarning``:
+"for best performance, build your matrix as a csc_matrix"): a benchmark reports times, and the
+advice, printed once per process, ends up in the middle of its tables.
+
+Every benchmark runs both as ``python -m benchmarks.NAME`` and as ``python benchmarks/NAME.py``;
+for the second form it starts with::
+
+    if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this checkout
+        sys.path[0] = str(Path(__file__).resolve().parents[1])
+"""
 
 from __future__ import annotations
 
+import argparse
 import datetime
 import json
 import os
 import platform
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from safenav.experiments import markdown
+from safenav._checks import argument_type
+from safenav.errors import SafeNavError
+from safenav.experiments.tables import markdown
+
+warnings.filterwarnings("ignore", category=UserWarning, module=r"qpsolvers(\..*)?$")
+
+
+def run_cli(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
+            run: Callable[[argparse.Namespace], int]) -> int:
+    """Parse ``argv`` and run; a :class:`~safenav.errors.SafeNavError` becomes one line on standard error.
+
+    Returns:
+        ``run``'s exit code, or 2 after a SafeNavError (``<prog>: error: <message>``; an unknown name,
+        a bad value, an unwritable output). Argparse's own usage errors exit with 2 as well.
+    """
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except SafeNavError as error:
+        print(f"{parser.prog}: error: {error}", file=sys.stderr)
+        return 2
 
 
 def summary(samples_s: Sequence[float] | np.ndarray) -> dict[str, float]:
@@ -40,6 +73,21 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str
         return value
 
     return markdown(headers, [[cell(value) for value in row] for row in rows])
+
+
+def names(text: str) -> list[str]:
+    """A comma-separated list of names (an argparse ``type=``): ``"cbf, mpc"`` -> ``["cbf", "mpc"]``."""
+    return [name.strip() for name in text.split(",") if name.strip()]
+
+
+def numbers(check: Callable[..., float], **bounds: Any) -> Callable[[str], list[float]]:
+    """An argparse ``type=`` for comma-separated numbers, each passed through a check of :mod:`safenav._checks`."""
+    parse = argument_type(check, **bounds)
+
+    def parse_all(text: str) -> list[float]:
+        return [parse(item) for item in names(text)]
+
+    return parse_all
 
 
 def machine() -> dict[str, Any]:

@@ -17,27 +17,37 @@ Faults (one at a time, everything else nominal):
 * ``actuation_noise``: the executed velocity off by a relative 5 %, 10 % (std, per period);
 * ``mount_yaw_error``: the lidar turned by 1, 3 degrees from where the robot description says.
 
-Run ``python -m benchmarks.robustness --help`` (or ``safenav bench robustness``).
+Run ``python -m benchmarks.robustness --help`` (or ``safenav bench robustness``); ``--quick``
+runs one seed of short episodes at the default margin, ``--faults`` and ``--scenarios`` a part.
 """
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this checkout
+    sys.path[0] = str(Path(__file__).resolve().parents[1])
+
 import argparse
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
-from benchmarks.common import markdown_table, write_json
-from safenav.experiments import Cell, EpisodeSpec, cell_record, run_specs, scenario_for
-from safenav.filters import make_filter
+from benchmarks.common import markdown_table, names, numbers, run_cli, write_json
+from safenav._checks import argument_type, choice, integer, number, positive, writable_file
+from safenav.experiments import Cell, EpisodeSpec, cell_record, run_specs
+from safenav.filters import default_margin
+from safenav.scenarios import scenario
 
-FAULTS: dict[str, tuple[float, ...]] = {
+FAULTS: Mapping[str, tuple[float, ...]] = MappingProxyType({
     "range_noise": (0.0, 0.01, 0.03, 0.05),
     "dropout": (0.1, 0.3),
     "scan_latency": (1, 2),
     "actuation_noise": (0.05, 0.10),
     "mount_yaw_error": (math.radians(1.0), math.radians(3.0)),
-}
+})
 """Fault name (a :class:`~safenav.sim_bullet.SimConfig` field) and the levels tried."""
 
 CELLS = (("clutter_rosbot", "random_walk"), ("clutter_puzzlebot", "random_walk"), ("clutter_m2wr", "random_walk"),
@@ -61,48 +71,76 @@ def level_label(fault: str, level: float) -> str:
     return "nominal"
 
 
-def configurations(filters: Sequence[str], extra_margins: Sequence[float]) -> list[dict[str, Any]]:
+def configurations(filters: Sequence[str], extra_margins: Sequence[float],
+                   faults: Sequence[str] = tuple(FAULTS)) -> list[dict[str, Any]]:
     """Every (fault, level, filter, extra margin), starting with the nominal conditions."""
-    levels = [("nominal", None)] + [(fault, level) for fault, values in FAULTS.items() for level in values]
+    levels = [("nominal", None)] + [(fault, level) for fault in faults for level in FAULTS[fault]]
     return [{"fault": fault, "level": level, "filter": name, "extra_margin": extra}
             for fault, level in levels for name in filters for extra in extra_margins]
 
 
-def specs_for(configuration: dict[str, Any], seeds: Sequence[int], duration: float) -> list[EpisodeSpec]:
+def specs_for(configuration: dict[str, Any], seeds: Sequence[int], duration: float,
+              cells: Sequence[tuple[str, str]] = CELLS) -> list[EpisodeSpec]:
+    """The episodes of one configuration: every cell and seed, the filter at its default margin plus the extra."""
     sim_options = () if configuration["fault"] == "nominal" else ((configuration["fault"], configuration["level"]),)
     specs = []
-    for scenario_name, policy in CELLS:
-        robot = scenario_for(scenario_name).robot
-        margin = make_filter(configuration["filter"], robot).margin + configuration["extra_margin"]
+    for scenario_name, policy in cells:
+        margin = default_margin(scenario(scenario_name).robot) + configuration["extra_margin"]
         for seed in seeds:
             specs.append(EpisodeSpec(scenario_name, policy, configuration["filter"], seed, duration=duration,
                                      sim_options=sim_options, filter_options=(("margin", margin),)))
     return specs
 
 
-def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
+def build_parser(prog: str = "robustness") -> argparse.ArgumentParser:
+    """The benchmark's options."""
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--filters", default="cbf,mpc", help="comma-separated filters (default: cbf,mpc)")
-    parser.add_argument("--seeds", type=int, default=4, help="seeds per cell and configuration (default: 4)")
-    parser.add_argument("--duration", type=float, default=20.0, help="episode length [s] (default: 20)")
-    parser.add_argument("--margins", default=",".join(str(m) for m in EXTRA_MARGINS),
+    parser.add_argument("--filters", type=names, default=["cbf", "mpc"], metavar="A,B",
+                        help="comma-separated filters with a margin (default: cbf,mpc)")
+    parser.add_argument("--faults", type=names, default=list(FAULTS), metavar="A,B",
+                        help=f"comma-separated faults (default: all: {','.join(FAULTS)}); nominal always runs")
+    parser.add_argument("--scenarios", type=names, default=[name for name, _ in CELLS], metavar="A,B",
+                        help="comma-separated cells by scenario (default: " + ",".join(name for name, _ in CELLS) + ")")
+    parser.add_argument("--seeds", type=argument_type(integer, low=1), default=4,
+                        help="seeds per cell and configuration (default: 4)")
+    parser.add_argument("--duration", type=argument_type(positive), default=20.0,
+                        help="episode length [s] (default: 20)")
+    parser.add_argument("--margins", type=numbers(number, low=0.0), default=list(EXTRA_MARGINS), metavar="A,B",
                         help="comma-separated extra margins [m] added to each filter's default (default: 0,0.02,0.05)")
     parser.add_argument("--quick", action="store_true", help="one seed, 8 s episodes, the default margin only")
-    parser.add_argument("--workers", type=int, default=None, help="processes (default: one per core)")
+    parser.add_argument("--workers", type=argument_type(integer, low=1), default=None,
+                        help="processes (default: one per core)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress")
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    args = parser.parse_args(argv)
-    if args.quick:
-        args.seeds, args.duration, args.margins = 1, 8.0, "0"
-    filters = [name.strip() for name in args.filters.split(",") if name.strip()]
-    extra_margins = [float(value) for value in args.margins.split(",")]
-    configs = configurations(filters, extra_margins)
-    seeds = range(args.seeds)
-    specs = [spec for config in configs for spec in specs_for(config, seeds, args.duration)]
-    print(f"{len(configs)} configurations x {len(CELLS)} cells x {args.seeds} seeds = {len(specs)} episodes")
-    outcomes = run_specs(specs, workers=args.workers, description="robustness")
+    return parser
 
-    per_config = len(CELLS) * args.seeds
+
+def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
+    """Run the fault sweep; print the tables; write the JSON asked for.
+
+    Returns:
+        The exit code: 0, or 2 on bad usage (an unknown name, a bad number, an unwritable output).
+    """
+    return run_cli(build_parser(prog), argv, _sweep)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    if args.quick:
+        args.seeds, args.duration, args.margins = 1, 8.0, [0.0]
+    if args.json is not None:
+        writable_file("--json", args.json)
+    filters = [choice("filter with a margin", name, ("cbf", "mpc")) for name in args.filters]
+    faults = [choice("fault", name, tuple(FAULTS)) for name in args.faults]
+    cell_names = dict(CELLS)
+    cells = [(name, cell_names[choice("robustness cell", name, tuple(cell_names))]) for name in args.scenarios]
+    configs = configurations(filters, args.margins, faults)
+    seeds = range(args.seeds)
+    specs = [spec for config in configs for spec in specs_for(config, seeds, args.duration, cells)]
+    print(f"{len(configs)} configurations x {len(cells)} cells x {args.seeds} seeds = {len(specs)} episodes")
+    outcomes = run_specs(specs, workers=args.workers, progress=not args.no_progress, description="robustness")
+
+    per_config = len(cells) * args.seeds
     records = []
     for index, config in enumerate(configs):
         chunk = outcomes[index * per_config:(index + 1) * per_config]
@@ -139,7 +177,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
                             f"+{100 * safe[0]['extra_margin']:.0f} cm" if safe else "none tried"])
     print(markdown_table(["fault", "level", "filter", "extra margin needed"], restore))
     write_json(args.json, {"records": records, "restore": restore, "config": vars(args),
-                           "cells": [list(cell) for cell in CELLS]})
+                           "cells": [list(cell) for cell in cells]})
     return 0
 
 

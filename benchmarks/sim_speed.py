@@ -24,12 +24,17 @@ Run::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this checkout
+    sys.path[0] = str(Path(__file__).resolve().parents[1])
+
 import argparse
 import datetime
 import json
 import os
 import platform
-import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -37,10 +42,10 @@ from multiprocessing import get_context
 from typing import Any
 
 import numpy as np
-import pybullet
 
 from safenav import PRESET_NAMES, Pose2D, preset
-from safenav.sim_bullet import BulletSim, SimConfig
+from safenav._checks import argument_type, choice, integer
+from safenav.sim_bullet import BulletSim, SimConfig, import_pybullet
 from safenav.worlds import World, random_world
 
 COMMAND = (0.3, 0.6)
@@ -96,9 +101,10 @@ def measure(world: World, robot_name: str, threads: int, steps: int, warmup: int
             scan_times.append(clock() - start)
         raw_times = []
         client = sim.client_id
+        bullet = import_pybullet()
         for ray_from, ray_to in _raw_rays(robot_name, scan_poses):
             start = clock()
-            pybullet.rayTestBatch(ray_from, ray_to, numThreads=threads, physicsClientId=client)
+            bullet.rayTestBatch(ray_from, ray_to, numThreads=threads, physicsClientId=client)
             raw_times.append(clock() - start)
     return {"step": step_times, "scan": scan_times, "raw": raw_times, "poses": [tuple(p) for p in visited]}
 
@@ -162,7 +168,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "beams": robot.lidar.n_beams,
         "range_max_m": robot.lidar.range_max,
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version(),
-                    "pybullet_api": pybullet.getAPIVersion(), "load_average_before": load_before,
+                    "pybullet_api": import_pybullet().getAPIVersion(), "load_average_before": load_before,
                     "load_average_after": list(os.getloadavg())},
         "rows": rows,
         "parallel": parallel,
@@ -202,16 +208,21 @@ def print_table(report: dict[str, Any]) -> None:
 
 
 def build_parser(prog: str = "sim_speed") -> argparse.ArgumentParser:
+    """The benchmark's options."""
+    count = argument_type(integer, low=1)
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--robot", choices=PRESET_NAMES, default="rosbot", help="robot preset (default: rosbot)")
-    parser.add_argument("--obstacles", type=int, default=30, help="obstacles per random world (default: 30)")
-    parser.add_argument("--worlds", type=int, default=5, help="random worlds, seeds 0..N-1 (default: 5)")
-    parser.add_argument("--steps", type=int, default=1000, help="timed control steps per world (default: 1000)")
-    parser.add_argument("--warmup", type=int, default=50, help="untimed steps first (default: 50)")
-    parser.add_argument("--threads", type=int, nargs="+", default=[1, 0],
+    parser.add_argument("--robot", type=argument_type(choice, name="robot", text=True, known=PRESET_NAMES),
+                        default="rosbot", help="robot preset (default: rosbot)")
+    parser.add_argument("--obstacles", type=argument_type(integer, low=0), default=30,
+                        help="obstacles per random world (default: 30)")
+    parser.add_argument("--worlds", type=count, default=5, help="random worlds, seeds 0..N-1 (default: 5)")
+    parser.add_argument("--steps", type=count, default=1000, help="timed control steps per world (default: 1000)")
+    parser.add_argument("--warmup", type=argument_type(integer, low=0), default=50,
+                        help="untimed steps first (default: 50)")
+    parser.add_argument("--threads", type=argument_type(integer, low=0), nargs="+", default=[1, 0],
                         help="rayTestBatch numThreads values to run (0 = all cores; default: 1 0)")
-    parser.add_argument("--processes", type=int, default=os.cpu_count() or 1,
+    parser.add_argument("--processes", type=count, default=os.cpu_count() or 1,
                         help="single-threaded simulators run side by side for the aggregate rate "
                              "(default: the number of cpus; 1 skips it)")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON to PATH")
@@ -219,16 +230,15 @@ def build_parser(prog: str = "sim_speed") -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "sim_speed") -> int:
+    """Measure, print the table, write the JSON asked for; returns the exit code (2 on bad usage)."""
     args = build_parser(prog).parse_args(argv)
-    if args.worlds < 1 or args.steps < 1 or args.obstacles < 0 or any(t < 0 for t in args.threads):
-        print("sim_speed: --worlds and --steps must be >= 1, --obstacles and --threads >= 0", file=sys.stderr)
-        return 2
     report = run(args)
     print_table(report)
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump(report, handle, indent=2, allow_nan=False)
-        print(f"wrote {args.json}")
+        target = Path(args.json)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        print(f"wrote {target}")
     return 0
 
 

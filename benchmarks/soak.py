@@ -8,6 +8,12 @@ steps, after a warm-up). Run ``python -m benchmarks.soak --help``.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this checkout
+    sys.path[0] = str(Path(__file__).resolve().parents[1])
+
 import argparse
 import gc
 import math
@@ -19,16 +25,18 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.common import markdown_table, write_json
+from benchmarks.common import markdown_table, run_cli, write_json
+from safenav._checks import argument_type, choice, integer
 from safenav.episode import EpisodeConfig, run_episode
-from safenav.filters import make_filter
+from safenav.errors import InvalidConfig
+from safenav.filters import FILTER_NAMES, make_filter
 from safenav.reference import RandomWalk
-from safenav.robot import preset
+from safenav.robot import PRESET_NAMES, preset
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import random_world
 
 WINDOW = 1000
-"""Steps in each of the windows whose step times are compared."""
+"""Steps in each of the windows whose step times are compared (by default)."""
 
 
 def resident_bytes() -> int:
@@ -41,7 +49,7 @@ def resident_bytes() -> int:
 
 
 def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = "cbf", seed: int = 0,
-         warmup: int = 500, trace_python: bool = False) -> dict[str, Any]:
+         warmup: int = 500, window: int = WINDOW, trace_python: bool = False) -> dict[str, Any]:
     """Run the soak and return its measurements.
 
     Args:
@@ -50,10 +58,14 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
         filter_name: filter name (see :func:`safenav.filters.make_filter`).
         seed: seed of the world, the random walk and the simulator.
         warmup: steps after which the memory baseline is taken.
+        window: steps in each window whose step times are compared.
         trace_python: also track Python allocations with tracemalloc (slower).
+
+    Raises:
+        InvalidConfig: fewer steps than the warm-up and two windows.
     """
-    if steps < warmup + 2 * WINDOW:
-        raise ValueError(f"steps={steps} must be at least warmup + 2 x {WINDOW} = {warmup + 2 * WINDOW}")
+    if steps < warmup + 2 * window:
+        raise InvalidConfig(f"soak: steps={steps} must be at least warmup + 2 x window = {warmup + 2 * window}")
     robot = preset(robot_name)
     world = random_world(seed, robot, n_obstacles=30)
     config = EpisodeConfig(duration=steps * 0.05, sim=SimConfig(control_dt=0.05))
@@ -84,11 +96,11 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
         memory["python_end"] = tracemalloc.get_traced_memory()[0]
         tracemalloc.stop()
     done = metrics.steps
-    first = step_times[warmup:warmup + WINDOW]
-    last = step_times[done - WINDOW:done]
+    first = step_times[warmup:warmup + window]
+    last = step_times[done - window:done]
     # Median of every window after the warm-up, and the least-squares trend through them.
-    windows = [float(np.median(step_times[start:start + WINDOW]) * 1e6)
-               for start in range(warmup, done - WINDOW + 1, WINDOW)]
+    windows = [float(np.median(step_times[start:start + window]) * 1e6)
+               for start in range(warmup, done - window + 1, window)]
     trend = float(np.polyfit(np.arange(len(windows)), windows, 1)[0]) if len(windows) > 1 else 0.0
     return {
         "robot": robot_name, "filter": filter_name, "seed": seed, "steps": done, "wall_s": wall,
@@ -108,17 +120,32 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "soak") -> int:
+    """Run the soak and print its measurements.
+
+    Returns:
+        The exit code: 0 when the episode stayed clean, 1 after a collision or a fallback, 2 on bad usage.
+    """
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--steps", type=int, default=20_000, help="control periods (default: 20000)")
-    parser.add_argument("--robot", default="rosbot", help="robot preset (default: rosbot)")
-    parser.add_argument("--filter", default="cbf", help="filter (default: cbf)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--steps", type=argument_type(integer, low=1), default=20_000,
+                        help="control periods (default: 20000)")
+    parser.add_argument("--robot", type=argument_type(choice, name="robot", text=True, known=PRESET_NAMES),
+                        default="rosbot", help="robot preset (default: rosbot)")
+    parser.add_argument("--filter", type=argument_type(choice, name="filter", text=True, known=FILTER_NAMES),
+                        default="cbf", help="filter (default: cbf)")
+    parser.add_argument("--seed", type=argument_type(integer, low=0), default=0)
+    parser.add_argument("--warmup", type=argument_type(integer, low=0), default=500,
+                        help="steps before the memory baseline (default: 500)")
+    parser.add_argument("--window", type=argument_type(integer, low=1), default=WINDOW,
+                        help=f"steps per compared window (default: {WINDOW})")
     parser.add_argument("--tracemalloc", action="store_true", help="also track Python allocations (slower)")
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    args = parser.parse_args(argv)
+    return run_cli(parser, argv, _report)
+
+
+def _report(args: argparse.Namespace) -> int:
     result = soak(args.steps, robot_name=args.robot, filter_name=args.filter, seed=args.seed,
-                  trace_python=args.tracemalloc)
+                  warmup=args.warmup, window=args.window, trace_python=args.tracemalloc)
     rows = [[key, value if not isinstance(value, float) else round(value, 4)] for key, value in result.items()]
     print(markdown_table(["measure", "value"], rows))
     write_json(args.json, {"soak": result, "config": vars(args)})

@@ -3,7 +3,7 @@
 Commands:
   demo    the three tutorial robots, naive vs CBF-filtered vs MPC-filtered: a table and a PNG
   run     one episode with a summary, optionally a PNG, a GIF or the PyBullet GUI
-  bench   the benchmarks (collisions, latency, sim), from a safenav checkout
+  bench   the benchmarks, from a safenav checkout (they are not part of the wheel)
 
 Run ``safenav COMMAND --help`` for the options of each command.
 """
@@ -11,30 +11,29 @@ Run ``safenav COMMAND --help`` for the options of each command.
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import ModuleType
+from types import MappingProxyType, ModuleType
 from typing import TYPE_CHECKING
 
-from safenav.errors import InvalidConfig, SafeNavError, UnknownName
+from safenav import __version__
+from safenav._checks import argument_type, choice, integer, positive, writable_file
+from safenav.errors import InvalidConfig, SafeNavError
 
 if TYPE_CHECKING:
     from safenav.experiments import EpisodeOutcome
 
-TUTORIAL_WORLDS = ("stop_at_wall", "obstacle_avoidance", "wall_follower")
-"""Worlds of ``safenav run --world`` that are a tutorial scenario of their own."""
-
-RANDOM_WORLDS = ("clutter", "goal")
-"""Worlds of ``safenav run --world`` drawn from the seed (one scenario per robot: ``clutter_rosbot``, ...)."""
-
-BENCHMARKS = {"collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
-              "robustness": "robustness", "soak": "soak", "braking": "braking"}
-"""``safenav bench NAME``: the module of ``benchmarks/`` that runs it."""
+BENCHMARKS: Mapping[str, str] = MappingProxyType({
+    "collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
+    "robustness": "robustness", "soak": "soak", "braking": "braking"})
+"""Short names of ``safenav bench NAME`` and the module of ``benchmarks/`` each runs; every other
+module of a checkout's ``benchmarks/`` runs under its own name."""
 
 DEMO_FILTERS = ("none", "cbf", "mpc")
 """What ``safenav demo`` compares."""
@@ -47,63 +46,50 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def positive_int(text: str) -> int:
-    """An argparse type: an integer >= 1."""
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """An argparse type: a finite number > 0."""
-    value = float(text)
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
-    return value
-
-
 def _say(message: str) -> None:
     print(message, flush=True)
+
+
+def _filter_names(names: Sequence[str]) -> str:
+    from safenav.experiments import FILTER_LABELS
+
+    return " vs ".join(FILTER_LABELS[name] for name in names)
 
 
 # ---------------------------------------------------------------------------------------------- demo
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from safenav import experiments
+    from safenav.experiments import Cell, cell_records, episode_specs, outcome_table, run_specs
+    from safenav.plots import overlay_figure
+    from safenav.worlds import TUTORIALS
 
-    filters, missing = experiments.available_filters(DEMO_FILTERS)
-    for name, reason in missing.items():
-        _say(f"note: the {name!r} filter is not available here ({reason}); it is left out")
+    out = writable_file("--out", args.out)
+    cases = [(tutorial.name, tutorial.published_policy) for tutorial in TUTORIALS.values()]
     seeds = list(range(args.seed, args.seed + args.seeds))
-    cells = [experiments.Cell(name, policy, filter_name)
-             for name, policy in experiments.DEMO_CASES for filter_name in filters]
-    specs = experiments.episode_specs(cells, seeds, args.duration, record_seeds=[args.seed])
-    _say(f"safenav demo: the three tutorial robots, {' vs '.join(experiments.FILTER_LABELS[f] for f in filters)}; "
-         f"{len(specs)} episodes (seeds {seeds[0]}..{seeds[-1]}) on {args.workers or os.cpu_count()} processes")
+    cells = [Cell(name, policy, filter_name) for name, policy in cases for filter_name in DEMO_FILTERS]
+    specs = episode_specs(cells, seeds, args.duration, record_seeds=[args.seed])
+    _say(f"safenav demo: the three tutorial robots, {_filter_names(DEMO_FILTERS)}; {len(specs)} episodes "
+         f"(seeds {seeds[0]}..{seeds[-1]}) on {args.workers or os.cpu_count()} processes")
     start = time.perf_counter()
-    outcomes = experiments.run_specs(specs, args.workers, progress=not args.no_progress)
-    records = experiments.cell_records(outcomes)
+    outcomes = run_specs(specs, args.workers, progress=not args.no_progress)
+    records = cell_records(outcomes)
     _say("")
-    _say(experiments.outcome_table(records, ["scenario", "robot", "policy", "filter", "episodes", "collisions",
-                                             "clearance min / p5 / median [m]", "progress [m]", "stuck [s]",
-                                             "intervention"]))
+    _say(outcome_table(records, ["scenario", "robot", "policy", "filter", "episodes", "collisions",
+                                 "clearance min / p5 / median [m]", "progress [m]", "stuck [s]", "intervention"]))
     _say("")
     _say("clearance: smallest distance between the body and an obstacle (negative: overlap); progress: "
          "distance travelled; stuck: time the nominal wanted to move and the robot did not.")
     totals = []
-    for name in filters:
+    for name in DEMO_FILTERS:
         group = [r for r in records if r["filter"] == name]
-        totals.append(f"{experiments.FILTER_LABELS[name]} {sum(r['collisions'] for r in group)} of "
+        totals.append(f"{_filter_names([name])} {sum(r['collisions'] for r in group)} of "
                       f"{sum(r['episodes'] for r in group)}")
     _say("episodes that collided: " + ", ".join(totals))
     panels = [[o for o in outcomes if o.spec.seed == args.seed and (o.spec.scenario, o.spec.policy) == case]
-              for case in experiments.DEMO_CASES]
-    figure = experiments.overlay_figure(panels, title=f"safenav demo: the same start (seed {args.seed}), "
-                                                      f"{' vs '.join(experiments.FILTER_LABELS[f] for f in filters)}")
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+              for case in cases]
+    figure = overlay_figure(panels, title=f"safenav demo: the same start (seed {args.seed}), "
+                                          f"{_filter_names(DEMO_FILTERS)}")
     figure.savefig(out)
     _say(f"wrote {out.resolve()} (trajectories of seed {args.seed}, one panel per tutorial) "
          f"in {time.perf_counter() - start:.0f} s")
@@ -113,59 +99,48 @@ def _demo(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------------------- run
 
 
-def _scenario_name(world: str, robot: str | None) -> str:
-    from safenav.robot import PRESET_NAMES
-
-    if world in TUTORIAL_WORLDS:
-        return world
-    if world in RANDOM_WORLDS:
-        return f"{world}_{robot or PRESET_NAMES[0]}"
-    raise UnknownName("world", world, TUTORIAL_WORLDS + RANDOM_WORLDS)
-
-
 def _run(args: argparse.Namespace) -> int:
-    from safenav import experiments
-    from safenav.filters import FILTER_NAMES
-    from safenav.robot import PRESET_NAMES
+    from safenav.experiments import EpisodeSpec, run_spec
+    from safenav.scenarios import scenario, scenario_name
+    from safenav.sim_bullet import gui_problem
 
-    if args.robot is not None and args.robot not in PRESET_NAMES:
-        raise UnknownName("robot", args.robot, PRESET_NAMES)
-    if args.filter not in FILTER_NAMES:
-        raise UnknownName("filter", args.filter, FILTER_NAMES)
-    name = _scenario_name(args.world, args.robot)
-    task = experiments.scenario_for(name, args.robot, args.policy)
+    if args.gui and gui_problem() is not None:
+        raise InvalidConfig(f"--gui: {gui_problem()}")
+    plot = None if args.plot is None else writable_file("--plot", args.plot)
+    gif = None if args.gif is None else writable_file("--gif", args.gif)
+    name = scenario_name(args.world, args.robot)
+    task = scenario(name)
     policy = args.policy or task.policies[0]
-    _, missing = experiments.available_filters([args.filter])
-    if missing:
-        raise InvalidConfig(f"the {args.filter!r} filter is not available here ({missing[args.filter]})")
-    spec = experiments.EpisodeSpec(name, policy, args.filter, args.seed, args.duration, robot=args.robot,
-                                   record=args.plot is not None or args.gif is not None,
-                                   record_scans=args.gif is not None, gui=args.gui)
+    spec = EpisodeSpec(name, policy, args.filter, args.seed, args.duration, robot=args.robot,
+                       record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
-    _say(f"{task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), policy {policy}, "
-         f"filter {args.filter}, up to {duration:g} s")
-    outcome = experiments.run_spec(spec)
+    _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
+         f"policy {policy}, filter {args.filter}, up to {duration:g} s")
+    outcome = run_spec(spec)
     _print_summary(outcome)
-    world = task.world(args.seed)
     title = f"{name}, seed {args.seed}\n{policy} + filter {args.filter}"
-    if args.plot is not None:
-        from safenav.render import plot_episode
+    if plot is not None or gif is not None:
+        _draw(outcome, plot, gif, title)
+    return 0
 
-        hit = experiments.collision_point(outcome)
-        plot_episode(world, task.robot, outcome.trajectory.pose, collisions=None if hit is None else [hit],
-                     path=args.plot, title=title)
-        _say(f"wrote {Path(args.plot).resolve()}")
-    if args.gif is not None:
-        from safenav.render import save_gif
 
-        trajectory = outcome.trajectory
+def _draw(outcome: EpisodeOutcome, plot: Path | None, gif: Path | None, title: str) -> None:
+    from safenav.plots import plot_episode, save_gif
+    from safenav.robot import preset
+
+    robot, trajectory = preset(outcome.robot), outcome.trajectory
+    if plot is not None:
+        hit = outcome.collision_point()
+        plot_episode(outcome.world, robot, trajectory.pose, collisions=None if hit is None else [hit], path=plot,
+                     title=title)
+        _say(f"wrote {plot.resolve()}")
+    if gif is not None:
         stride = max(1, math.ceil(len(trajectory.pose) / 150))
         fps = 10.0
         speed = fps * stride * (trajectory.time[1] - trajectory.time[0]) if len(trajectory.time) > 1 else 1.0
-        frames = save_gif(args.gif, world, task.robot, trajectory.pose, [*trajectory.scans, None], fps=fps,
+        frames = save_gif(gif, outcome.world, robot, trajectory.pose, [*trajectory.scans, None], fps=fps,
                           stride=stride, title=title)
-        _say(f"wrote {Path(args.gif).resolve()} ({frames} frames, {speed:.1f}x real time)")
-    return 0
+        _say(f"wrote {gif.resolve()} ({frames} frames, {speed:.1f}x real time)")
 
 
 def _print_summary(outcome: EpisodeOutcome) -> None:
@@ -194,31 +169,68 @@ def _print_summary(outcome: EpisodeOutcome) -> None:
 # ---------------------------------------------------------------------------------------------- bench
 
 
+def checkout_root(roots: Sequence[str | os.PathLike[str]] | None = None) -> Path | None:
+    """The first of ``roots`` that holds a ``benchmarks`` package, or ``None``.
+
+    Args:
+        roots: folders to look in; by default the current directory, then the folder that holds
+            the ``safenav`` package (an editable install or a source tree).
+    """
+    if roots is None:
+        roots = (Path.cwd(), Path(__file__).resolve().parents[1])
+    return next((Path(root) for root in roots if (Path(root) / "benchmarks" / "__init__.py").is_file()), None)
+
+
+def benchmark_table(root: Path | None) -> Mapping[str, tuple[str, str]]:
+    """Every benchmark ``safenav bench`` knows: name -> (module in ``benchmarks/``, first line of its docstring).
+
+    The short names of :data:`BENCHMARKS` first, then every other module of ``root/benchmarks``
+    (not ``common``) under its own name. The docstrings are read without importing anything;
+    without a checkout the description is empty.
+    """
+    folder = None if root is None else root / "benchmarks"
+    modules = sorted(path.stem for path in folder.glob("*.py")) if folder is not None else []
+    extra = [module for module in modules if module not in BENCHMARKS.values() and module not in ("__init__", "common")]
+    table = {}
+    for name, module in [*BENCHMARKS.items(), *((module, module) for module in extra)]:
+        source = None if folder is None else folder / f"{module}.py"
+        text = ""
+        if source is not None and source.is_file():
+            docstring = ast.get_docstring(ast.parse(source.read_text(encoding="utf-8"))) or ""
+            text = docstring.strip().splitlines()[0] if docstring.strip() else ""
+        table[name] = (module, text)
+    return table
+
+
 def load_benchmark(module: str, roots: Sequence[str | os.PathLike[str]] | None = None) -> ModuleType:
     """Import ``benchmarks.<module>`` from a safenav checkout (the benchmarks are not part of the wheel).
 
     Args:
         module: the module name in ``benchmarks/`` (``"collision_rates"``, ``"filter_latency"``, ``"sim_speed"``).
-        roots: folders to look in, first match wins; by default the current directory, then the
-            folder that holds the ``safenav`` package (an editable install or a source tree).
+        roots: folders to look in, first match wins (see :func:`checkout_root`).
 
     Raises:
         InvalidConfig: no root holds ``benchmarks/<module>.py``.
     """
-    if roots is None:
-        roots = (Path.cwd(), Path(__file__).resolve().parents[1])
-    for root in map(Path, roots):
-        if (root / "benchmarks" / "__init__.py").is_file() and (root / "benchmarks" / f"{module}.py").is_file():
-            if str(root) not in sys.path:
-                sys.path.insert(0, str(root))
-            return importlib.import_module(f"benchmarks.{module}")
-    raise InvalidConfig(f"the benchmarks are not installed with the package: run `safenav bench` from a safenav "
-                        f"checkout (a folder holding benchmarks/{module}.py)")
+    root = checkout_root(roots)
+    if root is None or not (root / "benchmarks" / f"{module}.py").is_file():
+        raise InvalidConfig(f"the benchmarks are not installed with the package: run `safenav bench` from a safenav "
+                            f"checkout (a folder holding benchmarks/{module}.py)")
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    return importlib.import_module(f"benchmarks.{module}")
 
 
 def _bench(args: argparse.Namespace) -> int:
-    module = load_benchmark(BENCHMARKS[args.benchmark])
+    table = benchmark_table(checkout_root())
+    module = load_benchmark(table[args.benchmark][0])
     return int(module.main(list(args.arguments), prog=f"safenav bench {args.benchmark}"))
+
+
+def _benchmark_lines(table: Mapping[str, tuple[str, str]]) -> str:
+    width = max(len(name) for name in table)
+    return "\n".join(f"  {name:{width}s}  {text or '(benchmarks/' + module + '.py)'}"
+                     for name, (module, text) in table.items())
 
 
 # ---------------------------------------------------------------------------------------------- parser
@@ -229,9 +241,17 @@ def build_parser() -> argparse.ArgumentParser:
     from safenav.filters import FILTER_NAMES
     from safenav.reference import POLICY_NAMES
     from safenav.robot import PRESET_NAMES
+    from safenav.scenarios import RANDOM_WORLDS
+    from safenav.worlds import TUTORIAL_WORLDS
 
+    def name_type(kind: str, known: Sequence[str]) -> object:
+        return argument_type(choice, name=kind, text=True, known=tuple(known))
+
+    benchmarks = benchmark_table(checkout_root())
     formatter = argparse.RawDescriptionHelpFormatter
-    parser = _Parser(prog="safenav", description=__doc__, formatter_class=formatter)
+    parser = _Parser(prog="safenav", description=__doc__, formatter_class=formatter,
+                     epilog="benchmarks (safenav bench NAME, from a checkout):\n" + _benchmark_lines(benchmarks))
+    parser.add_argument("--version", action="version", version=f"safenav {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     demo = commands.add_parser(
@@ -240,19 +260,20 @@ def build_parser() -> argparse.ArgumentParser:
                     "obstacle_avoidance and wall_follower -- each run naive, CBF-filtered and MPC-filtered "
                     "on the same seeds. Prints a table of collisions, clearance and progress, and writes one PNG "
                     "with the trajectories of the first seed side by side.")
-    demo.add_argument("--seed", metavar="S", type=int, default=0,
+    demo.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                       help="first seed; its trajectories are drawn (default: 0)")
-    demo.add_argument("--seeds", metavar="N", type=positive_int, default=5,
+    demo.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=5,
                       help="seeds per scenario and filter (default: 5)")
     demo.add_argument("--out", metavar="PNG", default="safenav-demo.png",
                       help="the PNG to write (default: ./safenav-demo.png)")
-    demo.add_argument("--workers", metavar="N", type=positive_int, default=None,
+    demo.add_argument("--workers", metavar="N", type=argument_type(integer, low=1), default=None,
                       help="processes running episodes (default: one per core)")
-    demo.add_argument("--duration", metavar="T", type=positive_float, default=None,
+    demo.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                       help="episode length [s] (default: each scenario's own: 12, 40 and 60 s)")
-    demo.add_argument("--no-progress", action="store_true", help="no progress bar")
+    demo.add_argument("--no-progress", action="store_true", help="no progress")
     demo.set_defaults(handler=_demo)
 
+    worlds = (*TUTORIAL_WORLDS, *RANDOM_WORLDS)
     run = commands.add_parser(
         "run", formatter_class=formatter, help="one episode with a summary (and a PNG, a GIF or the GUI)",
         description="Run one closed-loop episode in PyBullet and print what happened.\n\n"
@@ -261,34 +282,29 @@ def build_parser() -> argparse.ArgumentParser:
                     "seed) and goal (the same with a goal to reach). --robot defaults to the tutorial's robot\n"
                     "(rosbot, puzzlebot, m2wr) or to rosbot in a random world; --policy defaults to the world's\n"
                     "first policy (stop_at_wall, obstacle_avoidance, wall_follower, random_walk, go_to_goal).")
-    run.add_argument("--robot", metavar="R", help=f"robot preset: {', '.join(PRESET_NAMES)}")
-    run.add_argument("--world", metavar="W", default="stop_at_wall",
-                     help=f"world: {', '.join(TUTORIAL_WORLDS + RANDOM_WORLDS)} (default: stop_at_wall)")
-    run.add_argument("--policy", metavar="P", help=f"nominal policy: {', '.join(POLICY_NAMES)}")
-    run.add_argument("--filter", metavar="F", default="cbf",
+    run.add_argument("--robot", metavar="R", type=name_type("robot", PRESET_NAMES),
+                     help=f"robot preset: {', '.join(PRESET_NAMES)}")
+    run.add_argument("--world", metavar="W", type=name_type("world", worlds), default="stop_at_wall",
+                     help=f"world: {', '.join(worlds)} (default: stop_at_wall)")
+    run.add_argument("--policy", metavar="P", type=name_type("policy", POLICY_NAMES),
+                     help=f"nominal policy: {', '.join(POLICY_NAMES)}")
+    run.add_argument("--filter", metavar="F", type=name_type("filter", FILTER_NAMES), default="cbf",
                      help=f"safety filter: {', '.join(FILTER_NAMES)} (default: cbf)")
-    run.add_argument("--seed", metavar="S", type=int, default=0,
+    run.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                      help="seed of the world, the start and the noise (default: 0)")
-    run.add_argument("--duration", metavar="T", type=positive_float, default=None,
+    run.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                      help="episode length [s] (default: the world's own)")
-    run.add_argument("--gui", action="store_true", help="watch it in the PyBullet GUI (real time)")
+    run.add_argument("--gui", action="store_true", help="watch it in the PyBullet GUI (real time; needs a display)")
     run.add_argument("--plot", metavar="PNG", help="write a top-down picture of the episode")
     run.add_argument("--gif", metavar="GIF", help="write an animation with the lidar rays")
     run.set_defaults(handler=_run)
 
     bench = commands.add_parser(
-        "bench", formatter_class=formatter, help="the benchmarks: collisions, latency, sim, robustness, soak, braking",
+        "bench", formatter_class=formatter, help=f"the benchmarks: {', '.join(benchmarks)}",
         description="Run a benchmark from a safenav checkout (the benchmarks are not part of the wheel):\n\n"
-                    "  collisions  collision rates, scenario x policy x filter (benchmarks/collision_rates.py)\n"
-                    "  latency     time of one filter call per QP back-end (benchmarks/filter_latency.py)\n"
-                    "  sim         speed of the PyBullet simulator (benchmarks/sim_speed.py)\n"
-                    "  robustness  collisions under sensor and actuator faults (benchmarks/robustness.py)\n"
-                    "  soak        one long episode: leaks, drift, failures (benchmarks/soak.py)\n"
-                    "  braking     weak brakes at speed: velocity-level vs acceleration-aware filters "
-                    "(benchmarks/braking.py)\n\n"
-                    "Everything after the name goes to the benchmark: safenav bench collisions --help.")
-    bench.add_argument("benchmark", choices=tuple(BENCHMARKS), metavar="NAME",
-                       help=f"one of: {', '.join(BENCHMARKS)}")
+                    + _benchmark_lines(benchmarks)
+                    + "\n\nEverything after the name goes to the benchmark: safenav bench collisions --help.")
+    bench.add_argument("benchmark", choices=tuple(benchmarks), metavar="NAME", help=f"one of: {', '.join(benchmarks)}")
     bench.add_argument("arguments", nargs=argparse.REMAINDER, help="the benchmark's own options")
     bench.set_defaults(handler=_bench)
     return parser

@@ -1,10 +1,10 @@
 """One closed-loop episode: world, robot, nominal policy, optional safety filter, in the simulator.
 
-The loop is DESIGN.md section 1: at every control period the policy maps the scan
-(and the pose, for goal-seeking policies) to ``u_nom``, the filter (if any) maps
-``u_nom`` and the scan (and the measured velocity) to ``u``, and the simulator holds
-``u`` for one period. The filter sees only what a real robot would: the scan and the
-odometry velocity. The metrics use the simulator's truth::
+At every control period the policy maps the scan (and the pose, for goal-seeking
+policies) to ``u_nom``, the filter (if any) maps ``u_nom`` and the scan (and the measured
+velocity) to ``u``, and the simulator holds ``u`` for one period. The filter sees only what
+a real robot would: the scan and the odometry velocity. The metrics use the simulator's
+truth::
 
     from safenav import preset
     from safenav.episode import run_episode
@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from safenav._checks import boolean, positive
 from safenav.errors import InvalidConfig
-from safenav.filters.base import FilterResult, FilterStatus, SafetyFilter
+from safenav.filters import FilterResult, FilterStatus, SafetyFilter
 from safenav.geometry import Pose2D
-from safenav.reference.base import Policy
+from safenav.reference import Policy
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 from safenav.sim_bullet import BulletSim, SimConfig, SimState
@@ -68,10 +69,9 @@ class EpisodeConfig:
 
     def __post_init__(self) -> None:
         for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value <= 0:
-                raise InvalidConfig(f"EpisodeConfig.{name} must be a finite number > 0, got {value!r}")
+            object.__setattr__(self, name, positive(f"EpisodeConfig.{name}", getattr(self, name)))
+        for name in ("stop_on_collision", "give_velocity", "stop_at_goal"):
+            object.__setattr__(self, name, boolean(f"EpisodeConfig.{name}", getattr(self, name)))
         if not isinstance(self.sim, SimConfig):
             raise InvalidConfig(f"EpisodeConfig.sim must be a SimConfig, got {self.sim!r}")
 
@@ -184,8 +184,8 @@ def run_episode(
     """Run one episode and measure it.
 
     The simulator, the policy and the filter are reset first; the simulator's noise
-    and the policy's randomness are seeded from ``seed``, so the same arguments give
-    the same episode.
+    and the policy's randomness draw from their own streams of ``seed``
+    (:mod:`safenav.seeding`), so the same arguments give the same episode.
 
     Args:
         world: the world (obstacles, start, optional goal).
@@ -193,7 +193,8 @@ def run_episode(
         policy: the nominal policy (reset here with ``seed``).
         safety_filter: the filter between policy and wheels, or ``None`` for the naive robot.
         config: episode settings; the filter's ``dt`` should equal ``config.sim.control_dt``.
-        seed: seed of everything random in the episode.
+        seed: the episode's seed (the simulator takes its ``sensor`` and ``actuation``
+            streams, the policy gets it in :meth:`~safenav.reference.Policy.reset`).
         record: also return the per-step :class:`Trajectory`.
         record_scans: keep the scans in the trajectory too (for animations).
         callback: called after every period with the step index, the new simulator state
@@ -212,7 +213,7 @@ def run_episode(
     if safety_filter is not None:
         safety_filter.reset()
     with BulletSim(world, robot, config.sim, seed=seed) as sim:
-        state = sim.reset(seed=seed)
+        state = sim.reset()
         goal = world.goal
         start_goal_distance = _distance(state.pose, goal) if goal is not None else None
         poses, velocities, times, clearances = [state.pose], [state.velocity], [state.time], [state.clearance]

@@ -10,27 +10,36 @@ scenario                      robot       world                              pol
 ``goal_<robot>``              each        random 10 x 10 m with a goal       go_to_goal
 ============================  ==========  =================================  ============================
 
-In the tutorial scenarios the seed perturbs the start pose by a few centimetres and
-degrees, so seeds give different episodes of the same task.
+:data:`SCENARIOS` is the one table, built once from the tutorials
+(:data:`~safenav.worlds.TUTORIALS`) and the presets; the command line, the experiments and
+the benchmarks read it. In the tutorial scenarios the seed jitters the start pose by a few
+centimetres and degrees, so seeds give different episodes of the same task; in the random
+ones it draws the world (:func:`~safenav.worlds.random_world`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
-import numpy as np
-
-from safenav.errors import UnknownName
-from safenav.geometry import Pose2D
-from safenav.reference import Policy, make_policy
+from safenav._checks import choice
+from safenav.errors import InvalidConfig
+from safenav.reference import POLICY_NAMES, Policy, make_policy
 from safenav.robot import PRESET_NAMES, RobotSpec, preset
-from safenav.worlds import World, random_world, tutorial_world
+from safenav.worlds import TUTORIALS, World, random_world
 
-__all__ = ["SCENARIO_NAMES", "TUTORIAL_POLICY", "Scenario", "scenario"]
+__all__ = ["RANDOM_WORLDS", "SCENARIOS", "SCENARIO_NAMES", "Scenario", "scenario", "scenario_for", "scenario_name"]
 
-TUTORIAL_POLICY = {"rosbot": "stop_at_wall", "puzzlebot": "obstacle_avoidance", "m2wr": "wall_follower"}
-"""The tutorial controller of each preset."""
+RANDOM_WORLDS = ("clutter", "goal")
+"""Kinds of random world: ``clutter`` (30 obstacles) and ``goal`` (the same with a goal); one scenario per preset."""
+
+RANDOM_OBSTACLES = 30
+"""Obstacles in the random 10 x 10 m arenas."""
+
+RANDOM_WALK_HOLD = 20
+"""Control periods the random walk holds each command in the scenarios (1 s at 0.05 s)."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +52,7 @@ class Scenario:
         policies: policy names that make sense here (the first is the default).
         duration: episode length [s].
         description: one line for tables and help.
+        world_kind: a tutorial's name, or one of :data:`RANDOM_WORLDS`.
     """
 
     name: str
@@ -50,76 +60,58 @@ class Scenario:
     policies: tuple[str, ...]
     duration: float
     description: str
-    _world: Callable[[int, RobotSpec], World]
+    world_kind: str
 
     @property
     def robot(self) -> RobotSpec:
         """The robot preset."""
         return preset(self.robot_name)
 
+    @property
+    def has_goal(self) -> bool:
+        """Whether its worlds have a goal (``go_to_goal`` needs one)."""
+        return self.world_kind == "goal"
+
     def world(self, seed: int) -> World:
-        """The world of episode ``seed`` (same seed, same world)."""
-        return self._world(seed, self.robot)
+        """The world of episode ``seed`` (same seed, same world; see :mod:`safenav.seeding`)."""
+        if self.world_kind in TUTORIALS:
+            return TUTORIALS[self.world_kind].world(seed)
+        return random_world(seed, self.robot, n_obstacles=RANDOM_OBSTACLES, goal=self.has_goal)
 
     def policy(self, name: str, world: World, seed: int) -> Policy:
-        """The nominal policy ``name`` for this scenario's robot in ``world``.
+        """The nominal policy ``name`` for this scenario's robot in ``world``, for episode ``seed``.
 
         Raises:
             UnknownName: ``name`` is not one of :attr:`policies`.
         """
-        if name not in self.policies:
-            raise UnknownName(f"policy for scenario {self.name!r}", name, self.policies)
-        robot = self.robot
+        choice(f"policy for scenario {self.name!r}", name, self.policies)
         if name == "go_to_goal":
-            return make_policy(name, robot, goal=world.goal)
+            return make_policy(name, self.robot, goal=world.goal)
         if name == "random_walk":
-            return make_policy(name, robot, seed=seed, hold_steps=20)
-        return make_policy(name, robot)
+            return make_policy(name, self.robot, seed=seed, hold_steps=RANDOM_WALK_HOLD)
+        return make_policy(name, self.robot)
 
 
-def _perturbed(world_name: str, position: float, heading: float) -> Callable[[int, RobotSpec], World]:
-    """The tutorial world with its start moved by up to ``position`` [m] and turned by up to ``heading`` [rad]."""
-
-    def build(seed: int, robot: RobotSpec) -> World:
-        world = tutorial_world(world_name)
-        rng = np.random.default_rng(seed)
-        dx, dy = rng.uniform(-position, position, 2)
-        start = world.start
-        return world.replace(start=Pose2D(start.x + dx, start.y + dy, start.yaw + rng.uniform(-heading, heading)))
-
-    return build
-
-
-def _random(goal: bool) -> Callable[[int, RobotSpec], World]:
-    def build(seed: int, robot: RobotSpec) -> World:
-        return random_world(seed, robot, n_obstacles=30, goal=goal)
-
-    return build
+def _scenarios() -> dict[str, Scenario]:
+    """Every scenario, in table order: the tutorials, then clutter and goal for each preset."""
+    tutorial_policy = {tutorial.robot: tutorial.policy for tutorial in TUTORIALS.values()}
+    items = [Scenario(tutorial.name, tutorial.robot, tuple(dict.fromkeys((tutorial.policy, tutorial.published_policy))),
+                      tutorial.duration, tutorial.description, tutorial.name)
+             for tutorial in TUTORIALS.values()]
+    items += [Scenario(f"clutter_{name}", name, ("random_walk", tutorial_policy[name]), 30.0,
+                       f"{name} in a random 10 x 10 m arena with {RANDOM_OBSTACLES} obstacles", "clutter")
+              for name in PRESET_NAMES]
+    items += [Scenario(f"goal_{name}", name, ("go_to_goal",), 40.0,
+                       f"{name} drives straight for a goal across a random cluttered arena", "goal")
+              for name in PRESET_NAMES]
+    return {item.name: item for item in items}
 
 
-def _registry() -> dict[str, Scenario]:
-    scenarios = [
-        Scenario("stop_at_wall", "rosbot", ("stop_at_wall", "stop_at_wall_buggy"), 12.0,
-                 "tutorial 1: drive at a wall 3 m ahead and stop before it", _perturbed("stop_at_wall", 0.1, 0.1)),
-        Scenario("obstacle_avoidance", "puzzlebot", ("obstacle_avoidance",), 40.0,
-                 "tutorial 2: wander a 6 x 6 m arena, turning away from what is ahead",
-                 _perturbed("obstacle_avoidance", 0.1, 0.2)),
-        Scenario("wall_follower", "m2wr", ("wall_follower",), 60.0,
-                 "tutorial 3: find a wall and follow it round an L-shaped room",
-                 _perturbed("wall_follower", 0.05, 0.1)),
-    ]
-    for name in PRESET_NAMES:
-        scenarios.append(Scenario(f"clutter_{name}", name, ("random_walk", TUTORIAL_POLICY[name]), 30.0,
-                                  f"{name} in a random 10 x 10 m arena with 30 obstacles", _random(goal=False)))
-    for name in PRESET_NAMES:
-        scenarios.append(Scenario(f"goal_{name}", name, ("go_to_goal",), 40.0,
-                                  f"{name} drives straight for a goal across a random cluttered arena",
-                                  _random(goal=True)))
-    return {item.name: item for item in scenarios}
+SCENARIOS: Mapping[str, Scenario] = MappingProxyType(_scenarios())
+"""Every scenario by name (read-only, built once)."""
 
-
-SCENARIO_NAMES = tuple(_registry())
-"""Every scenario name."""
+SCENARIO_NAMES = tuple(SCENARIOS)
+"""Every scenario name, in table order."""
 
 
 def scenario(name: str) -> Scenario:
@@ -128,7 +120,45 @@ def scenario(name: str) -> Scenario:
     Raises:
         UnknownName: ``name`` is not a scenario (the message lists them).
     """
-    registry = _registry()
-    if name not in registry:
-        raise UnknownName("scenario", name, registry)
-    return registry[name]
+    return SCENARIOS[choice("scenario", name, SCENARIO_NAMES)]
+
+
+def scenario_for(name: str, robot: str | None = None, policy: str | None = None) -> Scenario:
+    """The scenario ``name``, optionally with another robot or a policy it does not list.
+
+    Args:
+        name: a scenario name.
+        robot: a preset that replaces the scenario's robot (``None``: keep it).
+        policy: a policy to allow besides the scenario's own (``None``: only those).
+
+    Raises:
+        UnknownName: an unknown scenario, robot or policy (the message lists the known names).
+        InvalidConfig: ``go_to_goal`` in a scenario whose worlds have no goal.
+    """
+    base = scenario(name)
+    if robot is not None:
+        choice("robot", robot, PRESET_NAMES)
+    if policy is not None:
+        choice("policy", policy, POLICY_NAMES)
+    if policy == "go_to_goal" and not base.has_goal:
+        raise InvalidConfig(f"policy 'go_to_goal' needs a world with a goal, and scenario {name!r} has none")
+    changes: dict[str, object] = {}
+    if robot is not None and robot != base.robot_name:
+        changes["robot_name"] = robot
+    if policy is not None and policy not in base.policies:
+        changes["policies"] = (*base.policies, policy)
+    return dataclasses.replace(base, **changes) if changes else base
+
+
+def scenario_name(world: str, robot: str | None = None) -> str:
+    """The scenario of a world as the command line names it: a tutorial, or a random kind on a robot.
+
+    Args:
+        world: a tutorial world (its scenario has the same name) or one of :data:`RANDOM_WORLDS`.
+        robot: the preset of a random world (``None``: the first preset); ignored for tutorials.
+
+    Raises:
+        UnknownName: ``world`` is neither (the message lists both).
+    """
+    choice("world", world, (*TUTORIALS, *RANDOM_WORLDS))
+    return world if world in TUTORIALS else f"{world}_{robot or PRESET_NAMES[0]}"

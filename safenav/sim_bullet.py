@@ -1,9 +1,9 @@
 """A PyBullet simulator of a lidar-driven differential-drive robot, with truth for metrics.
 
-:class:`BulletSim` closes the loop of DESIGN.md section 1: it builds a
+:class:`BulletSim` closes the loop (policy -> filter -> base -> world -> lidar): it builds a
 :class:`~safenav.worlds.World` into PyBullet (headless ``p.DIRECT`` by default,
-``SimConfig(gui=True)`` to watch), moves the robot, and returns what the robot
-would sense plus the truth the metrics need::
+``SimConfig(gui=True)`` to watch), moves the robot, and returns what the robot would sense
+plus the truth the metrics need::
 
     from safenav import preset
     from safenav.sim_bullet import BulletSim, SimConfig
@@ -17,22 +17,25 @@ would sense plus the truth the metrics need::
 Model, and why:
 
 * **Obstacles** are ONE static triangle-mesh body: Bullet builds a bounding-volume
-  hierarchy over it, the fastest shape to ray-cast (DESIGN.md section 5; one body per
-  obstacle or per tile of the floor measured no faster). The mesh holds only the vertical
-  sides of the prisms: rays are horizontal and never need the caps. Cylinders become
-  circumscribed regular polygons that lie between the circle and a circle
+  hierarchy over it, the fastest shape to ray-cast (720 rays among 30 posts: about 0.4 ms as
+  meshes, 3.4-5.7 ms as ``GEOM_CYLINDER`` primitives; one body per obstacle or per tile of
+  the floor measured no faster). The mesh (:func:`~safenav.worlds.obstacle_mesh`) holds only
+  the vertical sides of the prisms: rays are horizontal and never need the caps. Cylinders
+  become circumscribed regular polygons that lie between the circle and a circle
   ``SimConfig.cylinder_tolerance`` (1 mm by default) larger: the lidar never reads a post
   long, reads it at most that much short along its normal, and a beam that grazes a post
   within the tolerance may hit the polygon where the circle would let it pass. Bullet
-  reports hit fractions in single precision: about 1e-7 of ``range_max``.
-* **Robot** is kinematic. A command ``(v, omega)`` is clipped to the velocity limits;
-  the base's velocity follows it at every physics step under the acceleration limits
-  (:meth:`~safenav.robot.RobotSpec.clip` with the current velocity), and the pose
-  advances by the exact arc of :func:`~safenav.geometry.unicycle_step` at the velocity
-  held over that physics step. Contacts are detected, not resolved: a robot driven
-  into a wall passes through it, and the collision is recorded.
-  The robot's PyBullet body has a visual shape and no collision shape, so rays never
-  hit it.
+  reports hit fractions in single precision (about 1e-7 of ``range_max``), and its triangle
+  ray test accepts hits up to 1e-4 of a face's width past the face's edge: a beam that grazes
+  a corner may read the face it just misses (up to 25 µm past the corner of a 25 cm box).
+* **Robot** is kinematic. A command ``(v, omega)`` is clipped to the velocity limits, and
+  the base's velocity follows it by the model ``SimConfig.base`` (:mod:`safenav.base_models`:
+  at the acceleration limits at every physics step by default, or at once, or a linear ramp
+  over the period, or a first-order lag); the pose advances by the exact arc of
+  :func:`~safenav.geometry.unicycle_step` at the mean velocity of each physics step.
+  Contacts are detected, not resolved: a robot driven into a wall passes through it, and
+  the collision is recorded. The robot's PyBullet body has a visual shape and no collision
+  shape, so rays never hit it.
 * **Lidar**: one ``rayTestBatch`` per scan, in the frame of the robot body, from the
   true mount (``lidar.mount`` with ``SimConfig.mount_yaw_error`` added to its yaw) at
   ``lidar.height``, one ray per beam of the preset, ``range_max`` long. Hits closer than
@@ -45,45 +48,102 @@ Model, and why:
   every physics step for the first-collision time. :meth:`BulletSim.bullet_clearance`
   measures the same thing with PyBullet's ``getClosestPoints`` for cross-checks.
 
-Noise and delays (all off by default except the preset's lidar noise), drawn from one
-``np.random.default_rng(seed)`` so the same seed gives the same episode:
+Noise and delays (all off by default except the preset's lidar noise), drawn from the
+``sensor`` and ``actuation`` streams of the seed (:mod:`safenav.seeding`), so the same seed
+gives the same episode:
 
 * range noise: Gaussian, std ``SimConfig.range_noise`` [m] (the preset's
   ``lidar.noise_std`` when ``None``), added to every hit before the range limits apply;
 * dropout: each beam reads ``NaN`` with probability ``SimConfig.dropout``;
 * actuation noise: *relative*. Once per control period a factor ``1 + s * N(0, 1)`` is
   drawn for ``v`` and another for ``omega``, ``s = SimConfig.actuation_noise``; the executed
-  velocity is the tracked velocity times these factors (wheel slip and calibration
+  velocity is the base model's velocity times these factors (wheel slip and calibration
   error: nothing moves when the command is zero);
 * command latency: a command is executed ``command_latency`` control periods after
   :meth:`BulletSim.step` receives it (zeros before the first one arrives);
 * scan latency: the scan delivered at a step was acquired ``scan_latency`` control
   periods earlier (the reset scan until then); ``scan.stamp`` stays the acquisition time.
+
+PyBullet comes with the ``sim`` extra. It is imported when a :class:`BulletSim` is built (so
+:class:`SimConfig` and the episode specs need no PyBullet); without it that raises
+:class:`~safenav.errors.MissingDependency` with the line ``pip install "safenav[sim]"``. The
+line PyBullet prints when it is imported ("pybullet build time: ...") is swallowed.
+
+This module is longer than most (about 630 lines) because it is one class, the simulator, with
+its config and state; the obstacle mesh lives in :mod:`safenav.worlds` and the base models in
+:mod:`safenav.base_models`.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
+import ctypes
 import math
-import numbers
 import operator
+import os
+import sys
 import time
 import weakref
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
-import pybullet
 
+from safenav._checks import boolean, choice, integer, number, positive
+from safenav._optional import require
+from safenav.base_models import BASE_MODELS, period_velocities
 from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
-from safenav.worlds import World
+from safenav.seeding import generator
+from safenav.worlds import World, obstacle_mesh
 
-__all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "obstacle_mesh"]
+__all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "gui_problem", "import_pybullet", "obstacle_mesh"]
+
+
+@contextlib.contextmanager
+def _output_swallowed() -> Iterator[None]:
+    """Send what C code prints on the standard output and error (file descriptors 1, 2) to the null device."""
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        saved = [os.dup(1), os.dup(2)]
+    except (OSError, ValueError, AttributeError):   # no real standard streams (an embedded interpreter)
+        yield
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        yield
+    finally:
+        with contextlib.suppress(OSError, AttributeError, TypeError):   # TypeError: no C library handle (Windows)
+            ctypes.CDLL(None).fflush(None)   # C stdio buffers what goes to a pipe: flush it while it is swallowed
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(null)
+
+
+def import_pybullet() -> ModuleType:
+    """PyBullet, imported without the "pybullet build time" line it prints (inside progress bars, in logs).
+
+    Imported when a simulator is built, not with this module: configs, states and everything that
+    only describes episodes work without PyBullet installed.
+
+    Raises:
+        MissingDependency: PyBullet is not installed (the message gives ``pip install "safenav[sim]"``).
+    """
+    loaded = sys.modules.get("pybullet")
+    if loaded is not None:
+        return loaded
+    with _output_swallowed():
+        return require("pybullet", extra="sim", purpose="the PyBullet simulator")
+
 
 _OBSTACLE_RGBA = (0.55, 0.55, 0.55, 1.0)
 _ROBOT_RGBA = (0.17, 0.63, 0.17, 1.0)
@@ -91,22 +151,16 @@ _GOAL_RGBA = (0.58, 0.40, 0.74, 0.8)
 _HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit fraction, position, normal)
 
 
-def _number(name: str, value: Any, *, low: float | None = None, high: float | None = None,
-            low_open: bool = False, high_open: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise InvalidConfig(f"SimConfig.{name} must be a finite number, got {value!r}")
-    result = float(value)
-    if low is not None and (result < low or (low_open and result == low)):
-        raise InvalidConfig(f"SimConfig.{name} must be {'>' if low_open else '>='} {low:g}, got {value!r}")
-    if high is not None and (result > high or (high_open and result == high)):
-        raise InvalidConfig(f"SimConfig.{name} must be {'<' if high_open else '<='} {high:g}, got {value!r}")
-    return result
+def gui_problem() -> str | None:
+    """Why the PyBullet GUI cannot open here, or ``None`` when it can (as far as can be told without opening it).
 
-
-def _integer(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
-        raise InvalidConfig(f"SimConfig.{name} must be an integer >= 0, got {value!r}")
-    return int(value)
+    On Linux the GUI needs an X display; without ``DISPLAY`` PyBullet would take the whole
+    process down instead of raising.
+    """
+    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        return ("the PyBullet GUI needs a display and DISPLAY is not set; run without the GUI "
+                "(write a picture or a GIF instead), or under xvfb-run")
+    return None
 
 
 @dataclass(frozen=True)
@@ -128,6 +182,16 @@ class SimConfig:
         gui_realtime: with the GUI, pace the simulation to the wall clock.
         num_threads: threads for ``rayTestBatch`` (0 = all cores).
         cylinder_tolerance: largest gap between a cylinder and the polygon the lidar sees [m].
+        base: how the base's velocity follows a command (:mod:`safenav.base_models`):
+
+            * ``"ramp_limit"`` (default): it tracks the command at the acceleration limits,
+              updated at every physics step;
+            * ``"instant"``: it equals the command at once;
+            * ``"ramp"``: it moves linearly from the period's start velocity to the command
+              over the whole control period, whatever the acceleration;
+            * ``"lag"``: first-order lag ``dv/dt = (command - v) / base_time_constant``,
+              integrated exactly over each physics step.
+        base_time_constant: time constant of the ``"lag"`` base [s]; ``control_dt`` when ``None``.
     """
 
     control_dt: float = 0.05
@@ -142,28 +206,37 @@ class SimConfig:
     gui_realtime: bool = True
     num_threads: int = 1
     cylinder_tolerance: float = 0.001
+    base: str = BASE_MODELS[0]
+    base_time_constant: float | None = None
 
     def __post_init__(self) -> None:
         put = object.__setattr__
-        put(self, "control_dt", _number("control_dt", self.control_dt, low=0.0, low_open=True))
-        put(self, "physics_dt", _number("physics_dt", self.physics_dt, low=0.0, low_open=True))
+        put(self, "control_dt", positive("SimConfig.control_dt", self.control_dt))
+        put(self, "physics_dt", positive("SimConfig.physics_dt", self.physics_dt))
         ratio = self.control_dt / self.physics_dt
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6 * ratio:
             raise InvalidConfig(f"SimConfig.control_dt={self.control_dt!r} must be a whole multiple of "
                                 f"physics_dt={self.physics_dt!r} (ratio {ratio:.6g})")
         if self.range_noise is not None:
-            put(self, "range_noise", _number("range_noise", self.range_noise, low=0.0))
-        put(self, "dropout", _number("dropout", self.dropout, low=0.0, high=1.0, high_open=True))
-        put(self, "actuation_noise", _number("actuation_noise", self.actuation_noise, low=0.0))
-        put(self, "command_latency", _integer("command_latency", self.command_latency))
-        put(self, "scan_latency", _integer("scan_latency", self.scan_latency))
-        put(self, "mount_yaw_error", _number("mount_yaw_error", self.mount_yaw_error, low=-math.pi, high=math.pi))
-        for name in ("gui", "gui_realtime"):
-            if not isinstance(getattr(self, name), bool):
-                raise InvalidConfig(f"SimConfig.{name} must be True or False, got {getattr(self, name)!r}")
-        put(self, "num_threads", _integer("num_threads", self.num_threads))
-        put(self, "cylinder_tolerance", _number("cylinder_tolerance", self.cylinder_tolerance, low=0.0,
-                                                low_open=True))
+            put(self, "range_noise", number("SimConfig.range_noise", self.range_noise, low=0.0))
+        put(self, "dropout", number("SimConfig.dropout", self.dropout, low=0.0, high=1.0, high_open=True))
+        put(self, "actuation_noise", number("SimConfig.actuation_noise", self.actuation_noise, low=0.0))
+        put(self, "command_latency", integer("SimConfig.command_latency", self.command_latency, low=0))
+        put(self, "scan_latency", integer("SimConfig.scan_latency", self.scan_latency, low=0))
+        put(self, "mount_yaw_error", number("SimConfig.mount_yaw_error", self.mount_yaw_error, low=-math.pi,
+                                            high=math.pi))
+        put(self, "gui", boolean("SimConfig.gui", self.gui))
+        put(self, "gui_realtime", boolean("SimConfig.gui_realtime", self.gui_realtime))
+        put(self, "num_threads", integer("SimConfig.num_threads", self.num_threads, low=0))
+        put(self, "cylinder_tolerance", positive("SimConfig.cylinder_tolerance", self.cylinder_tolerance))
+        put(self, "base", choice("base model (SimConfig.base)", self.base, BASE_MODELS))
+        if self.base_time_constant is not None:
+            put(self, "base_time_constant", positive("SimConfig.base_time_constant", self.base_time_constant))
+
+    @property
+    def time_constant(self) -> float:
+        """Time constant of the ``"lag"`` base [s]: ``base_time_constant``, or ``control_dt`` when that is ``None``."""
+        return self.control_dt if self.base_time_constant is None else self.base_time_constant
 
     @property
     def substeps(self) -> int:
@@ -207,46 +280,9 @@ class SimState:
     steps: int
 
 
-def obstacle_mesh(world: World, *, height: float | None = None, tolerance: float = 0.001,
-                  caps: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """The obstacles of ``world`` as one triangle mesh of vertical prisms.
-
-    Args:
-        world: the world.
-        height: height of the prisms [m]; ``world.obstacle_height`` by default.
-        tolerance: largest distance between a cylinder and its circumscribed polygon [m].
-        caps: include the top and bottom faces (for drawing; horizontal rays never hit them).
-
-    Returns:
-        ``(vertices, indices)``: an ``(N, 3)`` float array [m] and an ``(M, 3)`` int array of
-        triangles, counter-clockwise seen from outside.
-    """
-    top = world.obstacle_height if height is None else height
-    vertices: list[np.ndarray] = []
-    triangles: list[np.ndarray] = []
-    offset = 0
-    for obstacle in world.obstacles:
-        outline = obstacle.polygon(tolerance)
-        n = len(outline)
-        vertices.append(np.column_stack((np.vstack((outline, outline)), np.repeat([0.0, top], n))))
-        i = np.arange(n)
-        j = (i + 1) % n
-        sides = np.concatenate((np.column_stack((i, j, j + n)), np.column_stack((i, j + n, i + n))))
-        faces = [sides]
-        if caps:
-            k = np.arange(1, n - 1)
-            faces.append(np.column_stack((np.zeros(n - 2, dtype=int), k + 1, k)))
-            faces.append(np.column_stack((np.full(n - 2, n), n + k, n + k + 1)))
-        triangles.append(np.concatenate(faces) + offset)
-        offset += 2 * n
-    if not vertices:
-        return np.empty((0, 3)), np.empty((0, 3), dtype=int)
-    return np.concatenate(vertices), np.concatenate(triangles).astype(int)
-
-
-def _disconnect(client: int) -> None:
-    with contextlib.suppress(pybullet.error):   # already gone
-        pybullet.disconnect(physicsClientId=client)
+def _disconnect(bullet: ModuleType, client: int) -> None:
+    with contextlib.suppress(bullet.error):   # already gone
+        bullet.disconnect(physicsClientId=client)
 
 
 class BulletSim:
@@ -260,11 +296,13 @@ class BulletSim:
         world: the world to build.
         robot: the robot (body radius, limits, lidar).
         config: simulator settings.
-        seed: seed of the generator behind every random draw (noise, dropout, actuation
-            noise); ``None`` draws fresh entropy, as ``np.random.default_rng(None)``.
+        seed: the episode's seed (:mod:`safenav.seeding`): range noise and dropout draw from
+            its ``sensor`` stream, actuation noise from its ``actuation`` stream; ``None``
+            draws fresh entropy.
 
     Raises:
         InvalidConfig: a bad argument, or a lidar that scans above the obstacles.
+        SimulatorError: the GUI was asked for on Linux without a display (``DISPLAY`` unset).
     """
 
     def __init__(self, world: World, robot: RobotSpec, config: SimConfig = SimConfig(), *,
@@ -278,15 +316,19 @@ class BulletSim:
         if robot.lidar.height >= world.obstacle_height:
             raise InvalidConfig(f"BulletSim: the lidar scans at {robot.lidar.height} m, above the obstacles of "
                                 f"world {world.name!r} ({world.obstacle_height} m); expected a lower lidar")
+        problem = gui_problem() if config.gui else None
+        if problem is not None:
+            raise SimulatorError(problem)
         self.world = world
         self.robot = robot
         self.config = config
-        self._rng = np.random.default_rng(seed)
+        self._seed(seed)
         self._range_noise = robot.lidar.noise_std if config.range_noise is None else config.range_noise
+        self._bullet = pybullet = import_pybullet()
         self._client = pybullet.connect(pybullet.GUI if config.gui else pybullet.DIRECT)
         if self._client < 0:
             raise SimulatorError("could not connect to PyBullet" + (" (GUI needs a display)" if config.gui else ""))
-        self._finalizer = weakref.finalize(self, _disconnect, self._client)
+        self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
@@ -298,10 +340,14 @@ class BulletSim:
 
     # ------------------------------------------------------------------ construction
 
+    def _seed(self, seed: int | None) -> None:
+        self._sensor_rng = generator(seed, "sensor")
+        self._actuation_rng = generator(seed, "actuation")
+
     def _build_obstacles(self) -> int | None:
         if not self.world.obstacles:
             return None
-        client = self._client
+        pybullet, client = self._bullet, self._client
         vertices, indices = obstacle_mesh(self.world, tolerance=self.config.cylinder_tolerance)
         shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=vertices.tolist(),
                                               indices=indices.ravel().tolist(), physicsClientId=client)
@@ -317,7 +363,7 @@ class BulletSim:
 
     def _build_robot(self) -> int:
         """A body with a visual shape only: it carries the lidar frame and shows the robot in the GUI."""
-        robot, client = self.robot, self._client
+        robot, client, pybullet = self.robot, self._client, self._bullet
         visual = pybullet.createVisualShapeArray(
             shapeTypes=[pybullet.GEOM_CYLINDER, pybullet.GEOM_BOX],
             radii=[robot.radius, 0.0],
@@ -345,10 +391,10 @@ class BulletSim:
         self._mount_offset = math.hypot(mount.x, mount.y)
 
     def _set_up_gui(self) -> None:
-        client = self._client
+        pybullet, client = self._bullet, self._client
         xmin, ymin, xmax, ymax = self.world.bounds
-        floor = pybullet.createVisualShape(pybullet.GEOM_BOX, halfExtents=[0.5 * (xmax - xmin), 0.5 * (ymax - ymin),
-                                                                          0.005],
+        floor = pybullet.createVisualShape(pybullet.GEOM_BOX,
+                                           halfExtents=[0.5 * (xmax - xmin), 0.5 * (ymax - ymin), 0.005],
                                            rgbaColor=[0.92, 0.92, 0.88, 1.0], physicsClientId=client)
         pybullet.createMultiBody(0.0, -1, floor, basePosition=[0.5 * (xmin + xmax), 0.5 * (ymin + ymax), -0.005],
                                  physicsClientId=client)
@@ -415,6 +461,7 @@ class BulletSim:
         if self._obstacle_body is None:
             return math.inf
         position = self.state.pose if pose is None else pose
+        pybullet = self._bullet
         points = pybullet.getClosestPoints(bodyA=-1, bodyB=self._obstacle_body, distance=float(max_distance),
                                            collisionShapeA=self._probe,
                                            collisionShapePositionA=[float(position[0]), float(position[1]),
@@ -446,6 +493,7 @@ class BulletSim:
         lidar = self.robot.lidar
         n = lidar.n_beams
         half_yaw = 0.5 * pose.yaw
+        pybullet = self._bullet
         pybullet.resetBasePositionAndOrientation(self._robot_body, [pose.x, pose.y, 0.0],
                                                  [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
                                                  physicsClientId=self._client)
@@ -456,11 +504,11 @@ class BulletSim:
         if self._sensor_inside(pose, clearance):
             ranges[:] = -math.inf   # rays from inside a closed mesh would report its far side
         if self._range_noise > 0.0:
-            ranges += self._range_noise * self._rng.standard_normal(n)   # +-inf stay +-inf
+            ranges += self._range_noise * self._sensor_rng.standard_normal(n)   # +-inf stay +-inf
         ranges[ranges > lidar.range_max] = math.inf
         ranges[ranges < lidar.range_min] = -math.inf
         if self.config.dropout > 0.0:
-            ranges[self._rng.random(n) < self.config.dropout] = math.nan
+            ranges[self._sensor_rng.random(n) < self.config.dropout] = math.nan
         return lidar.scan(ranges, stamp=stamp)
 
     def _sensor_inside(self, pose: Pose2D, clearance: float | None) -> bool:
@@ -476,7 +524,7 @@ class BulletSim:
         """Put the robot at rest at ``start`` (the world's start by default) and scan.
 
         Args:
-            seed: reseed the generator with ``np.random.default_rng(seed)``; ``None``
+            seed: reseed the noise from this episode seed (as the constructor does); ``None``
                 continues the current generator (so a sequence of episodes after one seeded
                 reset is reproducible).
             start: the start pose [m, m, rad].
@@ -486,7 +534,7 @@ class BulletSim:
         """
         self._check_open()
         if seed is not None:
-            self._rng = np.random.default_rng(seed)
+            self._seed(seed)
         pose = self.world.start if start is None else Pose2D(*(float(v) for v in start))
         config = self.config
         self._pose = pose
@@ -523,20 +571,23 @@ class BulletSim:
             command = self._commands.popleft()
         factor = None
         if config.actuation_noise > 0.0:
-            factor = 1.0 + config.actuation_noise * self._rng.standard_normal(2)
+            factor = 1.0 + config.actuation_noise * self._actuation_rng.standard_normal(2)
         dt = config.physics_dt
-        pose, tracked = self._pose, self._tracked
+        ends, means = period_velocities(config.base, robot, self._tracked, command, period=config.control_dt,
+                                         substeps=config.substeps, time_constant=config.time_constant)
+        executed = means if factor is None else means * factor
+        pose = self._pose
         min_clearance = math.inf
-        for _ in range(config.substeps):
-            tracked = robot.clip(command, tracked, dt)
-            executed = tracked if factor is None else tracked * factor
-            pose = unicycle_step(pose, float(executed[0]), float(executed[1]), dt)
+        for v, omega in executed.tolist():
+            pose = unicycle_step(pose, v, omega, dt)
             self._physics_steps += 1
             clearance = self.world.clearance(pose, robot.radius)
             min_clearance = min(min_clearance, clearance)
             if clearance < 0.0 and self._first_collision is None:
                 self._first_collision = self._physics_steps * dt
-        self._pose, self._tracked, self._velocity = pose, tracked, executed
+        # The base model carries on from the velocity it reached; the noise factor is not part of its state.
+        self._pose, self._tracked = pose, ends[-1]
+        self._velocity = ends[-1] if factor is None else ends[-1] * factor
         self._steps += 1
         now = self._physics_steps * dt
         self._scans.append(self._cast(pose, now, clearance))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
 from pathlib import Path
@@ -9,10 +10,13 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from safenav import InvalidConfig
-from safenav.cli import load_benchmark, main
+import safenav
+from safenav import InvalidConfig, experiments
+from safenav.cli import BENCHMARKS, load_benchmark, main
+from safenav.filters import FILTER_NAMES
 
 ROOT = Path(__file__).resolve().parents[1]
+KNOWN_FILTERS = ", ".join(sorted(FILTER_NAMES))   # the filters' own table, as an unknown name lists it
 
 
 def test_safenav_help_runs_as_a_program():
@@ -46,10 +50,12 @@ def test_every_command_has_help(argv, expected, capsys, monkeypatch):
      "unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance, stop_at_wall, wall_follower"),
     (["run", "--policy", "dance"], "unknown policy 'dance'; expected one of: go_to_goal, obstacle_avoidance, "
                                    "random_walk, stop_at_wall, stop_at_wall_buggy, wall_follower"),
-    (["run", "--filter", "magic"], "unknown filter 'magic'; expected one of: cbf, cbf+escape, mpc, mpc+escape, "
-                                   "none, zones, zones+escape"),
+    (["run", "--filter", "magic"], f"unknown filter 'magic'; expected one of: {KNOWN_FILTERS}"),
     (["run", "--world", "wall_follower", "--policy", "go_to_goal"], "needs a world with a goal"),
-    (["run", "--duration", "-1"], "argument --duration: must be a number > 0, got -1"),
+    (["run", "--duration", "-1"], "argument --duration: must be a finite number > 0, got -1"),
+    (["run", "--seed", "-3"], "argument --seed: must be an integer >= 0, got -3"),
+    (["run", "--seed", "1.5"], "argument --seed: must be an integer >= 0, got 1.5 of type float"),
+    (["demo", "--duration", "soon"], "argument --duration: must be a finite number > 0, got 'soon' of type str"),
     (["run", "--speed", "3"], "unrecognized arguments: --speed 3"),
     (["demo", "--seeds", "0"], "argument --seeds: must be an integer >= 1, got 0"),
     (["bench", "nothing"], "argument NAME: invalid choice: 'nothing'"),
@@ -70,6 +76,68 @@ def test_bad_usage_is_one_line_and_exit_code_2(argv, message, capsys):
     assert captured.out == ""
 
 
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"safenav {safenav.__version__}\n"
+
+
+def test_top_level_help_lists_every_benchmark_of_the_checkout(capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    modules = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py") if p.stem not in ("__init__", "common"))
+    aliases = {module: name for name, module in BENCHMARKS.items()}
+    for module in modules:
+        source = (ROOT / "benchmarks" / f"{module}.py").read_text()
+        first_line = ast.get_docstring(ast.parse(source)).splitlines()[0]
+        assert f"  {aliases.get(module, module)} " in out and first_line in out, module
+
+
+def _run_without_running(argv, capsys, monkeypatch):
+    """Run the CLI with ``run_spec`` replaced by a tripwire: the error must come before any episode."""
+    def tripwire(spec):
+        raise AssertionError(f"an episode started: {spec}")
+
+    monkeypatch.setattr(experiments, "run_spec", tripwire)
+    code = main(argv)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err.strip()
+
+
+def test_gui_without_a_display_is_safenavs_own_one_line_error(capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    code, out, error = _run_without_running(["run", "--gui"], capsys, monkeypatch)
+    assert code == 2 and out == ""
+    assert error == ("safenav: error: --gui: the PyBullet GUI needs a display and DISPLAY is not set; run without "
+                     "the GUI (write a picture or a GIF instead), or under xvfb-run")
+
+
+@pytest.mark.parametrize("option", ["--plot", "--gif"])
+def test_an_unwritable_picture_fails_before_the_episode(option, tmp_path, capsys, monkeypatch):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    code, out, error = _run_without_running(["run", option, str(blocker / "out.png")], capsys, monkeypatch)
+    assert code == 2 and out == ""
+    assert error.startswith(f"safenav: error: cannot write {option} '{blocker / 'out.png'}': ") and "\n" not in error
+    folder = tmp_path / "a-folder"
+    folder.mkdir()
+    code, out, error = _run_without_running(["run", option, str(folder)], capsys, monkeypatch)
+    assert code == 2 and out == "" and error.endswith("is a folder; expected the path of a file to write")
+
+
+def test_an_unwritable_demo_picture_fails_before_the_episodes(tmp_path, capsys, monkeypatch):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setattr(experiments, "run_specs", lambda *args, **kwargs: pytest.fail("episodes started"))
+    assert main(["demo", "--out", str(blocker / "demo.png")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.startswith("safenav: error: cannot write --out")
+
+
 def test_bench_outside_a_checkout_says_where_to_run(tmp_path):
     with pytest.raises(InvalidConfig, match="run `safenav bench` from a safenav checkout"):
         load_benchmark("collision_rates", roots=[tmp_path])
@@ -80,8 +148,7 @@ def test_bench_collisions_reports_bad_names_with_its_own_prefix(capsys, monkeypa
     monkeypatch.chdir(ROOT)
     assert main(["bench", "collisions", "--filters", "magic"]) == 2
     error = capsys.readouterr().err.strip()
-    assert error == ("safenav bench collisions: error: unknown filter 'magic'; expected one of: cbf, cbf+escape, mpc, "
-                     "mpc+escape, none, zones, zones+escape")
+    assert error == f"safenav bench collisions: error: unknown filter 'magic'; expected one of: {KNOWN_FILTERS}"
 
 
 @pytest.mark.sim

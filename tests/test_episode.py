@@ -106,18 +106,3 @@ def test_filter_period_must_match_the_control_period():
 def test_bad_episode_config_names_the_field():
     with pytest.raises(InvalidConfig, match=r"EpisodeConfig\.duration must be a finite number > 0"):
         EpisodeConfig(duration=0.0)
-
-
-@pytest.mark.parametrize("steps", [pytest.param(3000, id="ci"),
-                                   pytest.param(20_000, id="long", marks=pytest.mark.slow)])
-def test_soak_random_walk_through_the_cbf_stays_clean(steps):
-    """No collision, no solver failure, flat memory, flat step time (leaks would show as growth)."""
-    from benchmarks.soak import soak
-
-    result = soak(steps)
-    assert result["steps"] == steps
-    assert not result["collided"] and result["fallbacks"] == 0
-    assert result["min_clearance"] >= result["margin"] - 0.01
-    assert result["rss_end_mb"] - result["rss_start_mb"] < 20.0
-    # The windows are 1000 steps apart in the same run; a 3x margin absorbs a noisy machine.
-    assert result["last_window_median_us"] <= 3.0 * result["first_window_median_us"]

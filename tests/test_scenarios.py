@@ -12,7 +12,8 @@ import pytest
 from safenav import UnknownName
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.filters import make_filter
-from safenav.scenarios import SCENARIO_NAMES, TUTORIAL_POLICY, scenario
+from safenav.scenarios import SCENARIO_NAMES, SCENARIOS, scenario, scenario_name
+from safenav.worlds import TUTORIALS
 
 DT = 0.05
 
@@ -21,9 +22,10 @@ CELLS = [(name, policy) for name in SCENARIO_NAMES for policy in scenario(name).
 
 def test_registry_covers_the_tutorials_clutter_and_goals():
     assert {"stop_at_wall", "obstacle_avoidance", "wall_follower"} <= set(SCENARIO_NAMES)
+    tutorial_policy = {tutorial.robot: tutorial.policy for tutorial in TUTORIALS.values()}
     for robot in ("rosbot", "puzzlebot", "m2wr"):
         assert "random_walk" in scenario(f"clutter_{robot}").policies
-        assert TUTORIAL_POLICY[robot] in scenario(f"clutter_{robot}").policies
+        assert tutorial_policy[robot] in scenario(f"clutter_{robot}").policies
         assert scenario(f"goal_{robot}").policies == ("go_to_goal",)
         assert scenario(f"goal_{robot}").world(0).goal is not None
     assert "stop_at_wall_buggy" in scenario("stop_at_wall").policies
@@ -46,6 +48,35 @@ def test_unknown_names_list_the_known_ones():
         scenario("wall_follower").policy("go_to_goal", world, 0)
 
 
+def test_the_table_is_built_once_and_read_only():
+    assert tuple(SCENARIOS) == SCENARIO_NAMES and scenario("goal_m2wr") is SCENARIOS["goal_m2wr"]
+    with pytest.raises(TypeError):
+        SCENARIOS["moon"] = SCENARIOS["goal_m2wr"]
+    for name, tutorial in TUTORIALS.items():   # the tutorial scenarios come from the tutorial table
+        task = scenario(name)
+        assert (task.robot_name, task.duration, task.description) == (tutorial.robot, tutorial.duration,
+                                                                       tutorial.description)
+        assert task.policies[0] == tutorial.policy and tutorial.published_policy in task.policies
+        assert not task.has_goal
+    assert [name for name in SCENARIO_NAMES if SCENARIOS[name].has_goal] == ["goal_rosbot", "goal_puzzlebot",
+                                                                               "goal_m2wr"]
+
+
+@pytest.mark.parametrize(("world", "robot", "expected"), [
+    ("stop_at_wall", None, "stop_at_wall"),
+    ("wall_follower", "rosbot", "wall_follower"),   # a tutorial world keeps its name whatever the robot
+    ("clutter", None, "clutter_rosbot"),
+    ("goal", "m2wr", "goal_m2wr"),
+])
+def test_the_command_line_names_a_scenario_by_world_and_robot(world, robot, expected):
+    assert scenario_name(world, robot) == expected
+
+
+def test_a_world_that_is_neither_lists_both_kinds():
+    with pytest.raises(UnknownName, match="unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance"):
+        scenario_name("moon")
+
+
 def closed_loop_cases(filters: tuple[str, ...]) -> list:
     cases = []
     for filter_name in filters:
@@ -57,15 +88,7 @@ def closed_loop_cases(filters: tuple[str, ...]) -> list:
     return cases
 
 
-def available_filters() -> tuple[str, ...]:
-    try:
-        import safenav.filters.mpc  # noqa: F401
-    except ImportError:
-        return ("cbf",)
-    return ("cbf", "mpc")
-
-
-@pytest.mark.parametrize(("name", "policy", "filter_name", "seed"), closed_loop_cases(available_filters()))
+@pytest.mark.parametrize(("name", "policy", "filter_name", "seed"), closed_loop_cases(("cbf", "mpc")))
 def test_filtered_robot_never_collides_and_keeps_its_margin(name, policy, filter_name, seed):
     """Acceleration limits are active (the simulator ramps) and the filter gets the odometry velocity."""
     task = scenario(name)

@@ -17,10 +17,20 @@ name                      policy
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 from typing import Any
 
-from safenav.errors import InvalidConfig, UnknownName
-from safenav.reference.base import Policy, Proximity, RangeCheck, check_beam, check_sector
+from safenav._checks import choice
+from safenav.reference.base import (
+    Policy,
+    Proximity,
+    RangeCheck,
+    TutorialController,
+    check_beam,
+    check_sector,
+    robot_spec,
+)
 from safenav.reference.go_to_goal import GoToGoal
 from safenav.reference.obstacle_avoidance import ObstacleAvoidance
 from safenav.reference.random_walk import RandomWalk
@@ -29,6 +39,7 @@ from safenav.reference.wall_follower import WallFollower
 from safenav.robot import RobotSpec
 
 __all__ = [
+    "POLICIES",
     "POLICY_NAMES",
     "GoToGoal",
     "ObstacleAvoidance",
@@ -37,21 +48,25 @@ __all__ = [
     "RandomWalk",
     "RangeCheck",
     "StopAtWall",
+    "TutorialController",
     "WallFollower",
     "check_beam",
     "check_sector",
     "make_policy",
 ]
 
-POLICY_NAMES = (
-    "stop_at_wall",
-    "stop_at_wall_buggy",
-    "obstacle_avoidance",
-    "wall_follower",
-    "go_to_goal",
-    "random_walk",
-)
-"""Names :func:`make_policy` accepts."""
+POLICIES: Mapping[str, Callable[..., Policy]] = MappingProxyType({
+    "stop_at_wall": StopAtWall,
+    "stop_at_wall_buggy": StopAtWall.tutorial_bug,
+    "obstacle_avoidance": ObstacleAvoidance,
+    "wall_follower": WallFollower,
+    "go_to_goal": GoToGoal,
+    "random_walk": RandomWalk,
+})
+"""Every reference policy by name: a callable taking ``robot=`` and the policy's own keyword arguments."""
+
+POLICY_NAMES = tuple(POLICIES)
+"""Names :func:`make_policy` accepts (the keys of :data:`POLICIES`)."""
 
 
 def make_policy(name: str, robot: RobotSpec, **kwargs: Any) -> Policy:
@@ -72,18 +87,5 @@ def make_policy(name: str, robot: RobotSpec, **kwargs: Any) -> Policy:
         InvalidConfig: ``robot`` is not a :class:`~safenav.robot.RobotSpec`, or an argument
             is out of range.
     """
-    if not isinstance(robot, RobotSpec):
-        raise InvalidConfig(f"make_policy: robot must be a RobotSpec (e.g. safenav.preset('rosbot')), got {robot!r}")
-    if name == "stop_at_wall":
-        return StopAtWall(robot=robot, **kwargs)
-    if name == "stop_at_wall_buggy":
-        return StopAtWall.tutorial_bug(robot=robot, **kwargs)
-    if name == "obstacle_avoidance":
-        return ObstacleAvoidance(robot=robot, **kwargs)
-    if name == "wall_follower":
-        return WallFollower(robot=robot, **kwargs)
-    if name == "go_to_goal":
-        return GoToGoal(robot, **kwargs)
-    if name == "random_walk":
-        return RandomWalk(robot, **kwargs)
-    raise UnknownName("policy", name, POLICY_NAMES)
+    build = POLICIES[choice("policy", name, POLICY_NAMES)]
+    return build(robot=robot_spec("make_policy: robot", robot), **kwargs)

@@ -9,7 +9,7 @@ convention.
 Besides the :class:`Policy` base, this module holds the one rule every reference
 policy uses to compare a direction of the scan with a distance threshold
 (:func:`check_sector`, :func:`check_beam`), so that invalid readings and unseen
-directions are treated the same way everywhere (DESIGN.md section 2). The
+directions are treated the same way everywhere (REP-117). The
 :class:`Proximity` of a direction is
 
 * ``NEAR`` when a beam reads ``-inf`` (an object closer than ``range_min``), or the
@@ -30,17 +30,16 @@ from __future__ import annotations
 import abc
 import enum
 import math
-import numbers
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from safenav._checks import vector
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.geometry import Pose2D
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan, Reading, SectorState
 
-__all__ = ["Policy", "Proximity", "RangeCheck", "check_beam", "check_sector"]
+__all__ = ["Policy", "Proximity", "RangeCheck", "TutorialController", "check_beam", "check_sector"]
 
 _COVERAGE_TOL = 1e-9
 
@@ -69,6 +68,36 @@ class Policy(abc.ABC):
     def state(self) -> str:
         """Name of the internal state, for logging (e.g. the wall follower's ``"follow the wall"``)."""
         return ""
+
+
+class TutorialController(Policy):
+    """A tutorial's controller: each scan decides a state and a command, clipped to an optional robot.
+
+    Subclasses implement :meth:`_decide` (the tutorial's rule, which also updates the state they
+    report); this class checks the scan and applies the robot's velocity limits, so every tutorial
+    controller treats a non-scan and the limits the same way.
+
+    Attributes:
+        robot: when given, commands are clipped to its velocity limits.
+    """
+
+    robot: RobotSpec | None
+
+    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
+        """The command the tutorial's rule gives for this scan (see the class), within the robot's limits.
+
+        Args:
+            scan: the latest scan.
+            pose: unused: the tutorials steer by the scan alone.
+
+        Raises:
+            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
+        """
+        return limited(self._decide(require_scan(type(self).__name__, scan)), self.robot)
+
+    @abc.abstractmethod
+    def _decide(self, scan: LaserScan) -> Command:
+        """The tutorial's command for ``scan``, before the robot's limits; updates the state."""
 
 
 class Proximity(enum.Enum):
@@ -184,36 +213,16 @@ def require_scan(owner: str, scan: Any) -> LaserScan:
     return scan
 
 
-def finite_number(owner: str, name: str, value: Any) -> float:
-    """``value`` as a finite float, or :class:`~safenav.errors.InvalidConfig` naming ``owner.name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise InvalidConfig(f"{owner}.{name} must be a finite number, got {value!r}")
-    return float(value)
-
-
-def positive_number(owner: str, name: str, value: Any) -> float:
-    """``value`` as a finite float > 0, or :class:`~safenav.errors.InvalidConfig` naming ``owner.name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
-        raise InvalidConfig(f"{owner}.{name} must be a finite number > 0, got {value!r}")
-    return float(value)
-
-
-def angle_in(owner: str, name: str, value: Any, upper: float, *, allow_zero: bool = False) -> float:
-    """``value`` [rad] as a float in ``(0, upper]`` (``[0, upper]`` with ``allow_zero``), or
-    :class:`~safenav.errors.InvalidConfig` naming ``owner.name``."""
-    angle = finite_number(owner, name, value)
-    if not (0.0 <= angle <= upper) or (angle == 0.0 and not allow_zero):
-        low = "[0" if allow_zero else "(0"
-        raise InvalidConfig(f"{owner}.{name} must be an angle in {low}, {upper:.6g}] rad, got {value!r}")
-    return angle
-
-
 def command_pair(owner: str, name: str, value: Any) -> Command:
     """``value`` as a finite :class:`~safenav.robot.Command`, or :class:`~safenav.errors.InvalidConfig`."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
-        raise InvalidConfig(f"{owner}.{name} must be a pair (v [m/s], omega [rad/s]), got {value!r}")
-    v, omega = (finite_number(owner, f"{name}[{i}]", component) for i, component in enumerate(value))
-    return Command(v, omega)
+    return Command(*vector(f"{owner}.{name}", value, 2, expected="a pair (v [m/s], omega [rad/s])"))
+
+
+def robot_spec(name: str, robot: Any) -> RobotSpec:
+    """``robot`` if it is a :class:`~safenav.robot.RobotSpec`, else :class:`~safenav.errors.InvalidConfig`."""
+    if not isinstance(robot, RobotSpec):
+        raise InvalidConfig(f"{name} must be a RobotSpec (e.g. safenav.preset('rosbot')), got {robot!r}")
+    return robot
 
 
 def optional_robot(owner: str, robot: Any) -> RobotSpec | None:

@@ -4,18 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
+from safenav._checks import angle, positive, vector
 from safenav.errors import InvalidConfig
 from safenav.geometry import Pose2D, wrap_angle
-from safenav.reference.base import (
-    Policy,
-    angle_in,
-    finite_number,
-    limited,
-    positive_number,
-    require_scan,
-)
+from safenav.reference.base import Policy, limited, require_scan, robot_spec
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
 
@@ -23,13 +16,6 @@ __all__ = ["GoToGoal"]
 
 STATES = ("idle", "turn", "drive", "reached")
 """The state names, for logging."""
-
-
-def _point(owner: str, name: str, value: Any, size: int) -> tuple[float, ...]:
-    """``value`` as ``size`` finite floats, or :class:`~safenav.errors.InvalidConfig` naming ``owner.name``."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != size:
-        raise InvalidConfig(f"{owner}.{name} must be a sequence of {size} finite numbers, got {value!r}")
-    return tuple(finite_number(owner, f"{name}[{i}]", component) for i, component in enumerate(value))
 
 
 class GoToGoal(Policy):
@@ -85,17 +71,15 @@ class GoToGoal(Policy):
             InvalidConfig: a value is out of range (the message names it).
         """
         owner = type(self).__name__
-        if not isinstance(robot, RobotSpec):
-            raise InvalidConfig(f"{owner}.robot must be a RobotSpec (e.g. safenav.preset('rosbot')), got {robot!r}")
-        self.robot = robot
-        self.speed = robot.v_max if speed is None else positive_number(owner, "speed", speed)
+        self.robot = robot_spec(f"{owner}.robot", robot)
+        self.speed = robot.v_max if speed is None else positive(f"{owner}.speed", speed)
         if self.speed > robot.v_max:
             raise InvalidConfig(f"{owner}.speed must be at most robot.v_max={robot.v_max!r} m/s, got {speed!r}")
-        self.heading_gain = positive_number(owner, "heading_gain", heading_gain)
-        self.distance_gain = positive_number(owner, "distance_gain", distance_gain)
-        self.turn_in_place_angle = angle_in(owner, "turn_in_place_angle", turn_in_place_angle, 0.5 * math.pi)
-        self.stop_radius = positive_number(owner, "stop_radius", stop_radius)
-        self._goal = _point(owner, "goal", goal, 2)
+        self.heading_gain = positive(f"{owner}.heading_gain", heading_gain)
+        self.distance_gain = positive(f"{owner}.distance_gain", distance_gain)
+        self.turn_in_place_angle = angle(f"{owner}.turn_in_place_angle", turn_in_place_angle, high=0.5 * math.pi)
+        self.stop_radius = positive(f"{owner}.stop_radius", stop_radius)
+        self._goal = vector(f"{owner}.goal", goal, 2)
         self._state = STATES[0]
         self._distance = math.nan
         self._heading_error = math.nan
@@ -108,7 +92,7 @@ class GoToGoal(Policy):
 
     @goal.setter
     def goal(self, goal: Sequence[float]) -> None:
-        self._goal = _point(type(self).__name__, "goal", goal, 2)
+        self._goal = vector(f"{type(self).__name__}.goal", goal, 2)
         self.reset()
 
     @property
@@ -152,7 +136,7 @@ class GoToGoal(Policy):
         require_scan(owner, scan)
         if pose is None:
             raise InvalidConfig(f"{owner} needs the robot's pose (x [m], y [m], yaw [rad]): call policy(scan, pose)")
-        x, y, yaw = _point(owner, "pose", pose, 3)
+        x, y, yaw = vector(f"{owner}.pose", pose, 3)
         dx, dy = self._goal[0] - x, self._goal[1] - y
         self._distance = math.hypot(dx, dy)
         self._heading_error = float(wrap_angle(math.atan2(dy, dx) - yaw))

@@ -4,18 +4,14 @@ from __future__ import annotations
 
 import math
 
-from safenav.geometry import Pose2D
+from safenav._checks import angle, positive
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
-    angle_in,
+    TutorialController,
     check_sector,
     command_pair,
-    limited,
     optional_robot,
-    positive_number,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -35,7 +31,7 @@ STATES = ("drive", "turn in place")
 """The state names, for logging."""
 
 
-class ObstacleAvoidance(Policy):
+class ObstacleAvoidance(TutorialController):
     """Drive forward while turning gently; turn in place while anything is close ahead.
 
     Reproduces tutorial 2 (Manchester Robotics Puzzlebot, "simple obstacle avoidance"):
@@ -48,7 +44,7 @@ class ObstacleAvoidance(Policy):
     * The cone is found by angle through the scan's mount pose (``scan.sector``), not by
       index ranges, so the wrap-around of the Puzzlebot's 0..2pi scan (the cone spans both ends of
       the ranges array, beams 345..359 and 0..14) and any other lidar convention are handled the same way.
-    * Readings follow REP-117 (DESIGN.md section 2): a ``-inf`` reading (object closer than
+    * Readings follow REP-117: a ``-inf`` reading (object closer than
       ``range_min``) turns; finite values outside ``[range_min, range_max]`` are discarded
       as the sensor's spec says (the tutorial would turn on a spurious reading below
       ``range_min``); ``NaN`` readings are ignored as the tutorial ignores invalid ones.
@@ -86,8 +82,8 @@ class ObstacleAvoidance(Policy):
             InvalidConfig: a value is out of range (the message names it).
         """
         owner = type(self).__name__
-        self.threshold = positive_number(owner, "threshold", threshold)
-        self.half_angle = angle_in(owner, "half_angle", half_angle, math.pi)
+        self.threshold = positive(f"{owner}.threshold", threshold)
+        self.half_angle = angle(f"{owner}.half_angle", half_angle, high=math.pi)
         self.cruise = command_pair(owner, "cruise", cruise)
         self.turn = command_pair(owner, "turn", turn)
         self.robot = optional_robot(owner, robot)
@@ -109,19 +105,10 @@ class ObstacleAvoidance(Policy):
         self._state = STATES[0]
         self._cone = None
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
-        """:attr:`turn` when the cone ahead is blocked or unknown, else :attr:`cruise`.
-
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
-        Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
-        """
-        scan = require_scan(type(self).__name__, scan)
+    def _decide(self, scan: LaserScan) -> Command:
+        """:attr:`turn` when the cone ahead is blocked or unknown, else :attr:`cruise`."""
         cone = check_sector(scan, -self.half_angle, self.half_angle, self.threshold)
         self._cone = cone
         blocked = cone.proximity in (Proximity.NEAR, Proximity.UNKNOWN)
         self._state = STATES[int(blocked)]
-        return limited(self.turn if blocked else self.cruise, self.robot)
+        return self.turn if blocked else self.cruise

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
+from safenav._checks import boolean, integer
 from safenav.errors import InvalidConfig
 from safenav.geometry import Pose2D
-from safenav.reference.base import Policy, require_scan
+from safenav.reference.base import Policy, require_scan, robot_spec
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
+from safenav.seeding import generator
 
 __all__ = ["RandomWalk"]
 
@@ -25,8 +25,8 @@ class RandomWalk(Policy):
     On the first call and every ``hold_steps`` calls after it, a new command is drawn with
     ``v`` uniform on ``[v_min, v_max)`` (``[0, v_max)`` with ``forward_only``) and ``omega``
     uniform on ``[-omega_max, omega_max)``, independently, from one
-    :class:`numpy.random.Generator` (``numpy.random.default_rng(seed)``); in between, the
-    command is held. The same seed gives the same command sequence.
+    :class:`numpy.random.Generator`, the ``policy`` stream of ``seed`` (:mod:`safenav.seeding`);
+    in between, the command is held. The same seed gives the same command sequence.
 
     Attributes:
         robot: the robot whose velocity limits bound the commands.
@@ -41,22 +41,17 @@ class RandomWalk(Policy):
         Args:
             robot: the robot (its velocity limits bound the commands).
             hold_steps: calls each command is held for, an integer >= 1.
-            seed: seed of the random generator; ``None`` draws fresh entropy.
+            seed: the episode's seed, an integer >= 0 (commands draw from its ``policy`` stream);
+                ``None`` draws fresh entropy.
             forward_only: draw ``v`` from ``[0, v_max)`` instead of ``[v_min, v_max)``.
 
         Raises:
             InvalidConfig: a value is out of range (the message names it).
         """
         owner = type(self).__name__
-        if not isinstance(robot, RobotSpec):
-            raise InvalidConfig(f"{owner}.robot must be a RobotSpec (e.g. safenav.preset('rosbot')), got {robot!r}")
-        if isinstance(hold_steps, bool) or not isinstance(hold_steps, numbers.Integral) or hold_steps < 1:
-            raise InvalidConfig(f"{owner}.hold_steps must be an integer >= 1, got {hold_steps!r}")
-        if not isinstance(forward_only, bool):
-            raise InvalidConfig(f"{owner}.forward_only must be True or False, got {forward_only!r}")
-        self.robot = robot
-        self.hold_steps = int(hold_steps)
-        self.forward_only = forward_only
+        self.robot = robot_spec(f"{owner}.robot", robot)
+        self.hold_steps = integer(f"{owner}.hold_steps", hold_steps, low=1)
+        self.forward_only = boolean(f"{owner}.forward_only", forward_only)
         lower = robot.lower.copy()
         if forward_only:
             lower[0] = 0.0
@@ -68,10 +63,9 @@ class RandomWalk(Policy):
     @staticmethod
     def _generator(seed: int | None) -> np.random.Generator:
         try:
-            return np.random.default_rng(seed)
-        except (TypeError, ValueError) as exc:
-            message = f"RandomWalk seed must be None or a non-negative integer, got {seed!r}: {exc}"
-            raise InvalidConfig(message) from None
+            return generator(seed, "policy")
+        except InvalidConfig:
+            raise InvalidConfig(f"RandomWalk seed must be None or a non-negative integer, got {seed!r}") from None
 
     @property
     def state(self) -> str:

@@ -3,22 +3,17 @@
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Any
 
+from safenav._checks import angle, optional_integer, positive
 from safenav.errors import InvalidConfig, InvalidScan
-from safenav.geometry import Pose2D
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
-    angle_in,
+    TutorialController,
     check_beam,
     check_sector,
-    limited,
     optional_robot,
-    positive_number,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -36,7 +31,7 @@ STATES = ("stop", "go")
 """The state names, for logging."""
 
 
-class StopAtWall(Policy):
+class StopAtWall(TutorialController):
     """Drive straight ahead while the front reading is beyond a threshold; stop otherwise.
 
     Reproduces tutorial 1 (Husarion ROSbot 2, "stop at a wall"): the node publishes
@@ -56,7 +51,7 @@ class StopAtWall(Policy):
     * The front is found by angle through the scan's mount pose (the beam nearest base-frame
       direction 0, or the nearest reading in a cone of ``front_half_width``), so it works on
       any lidar convention.
-    * Readings follow REP-117 (DESIGN.md section 2): ``+inf`` (nothing within ``range_max``)
+    * Readings follow REP-117: ``+inf`` (nothing within ``range_max``)
       goes when ``range_max >= threshold``, ``-inf`` (object closer than ``range_min``) stops,
       and a front with no informative reading (``NaN``, a finite value outside
       ``[range_min, range_max]``, or a front outside the field of view) stops: the robot does
@@ -102,20 +97,16 @@ class StopAtWall(Policy):
                 ``front_index`` and a non-zero ``front_half_width`` are given.
         """
         owner = type(self).__name__
-        self.speed = positive_number(owner, "speed", speed)
-        self.threshold = positive_number(owner, "threshold", threshold)
-        self.front_half_width = angle_in(owner, "front_half_width", front_half_width, 0.5 * math.pi,
-                                         allow_zero=True)
-        if front_index is not None and (
-            isinstance(front_index, bool) or not isinstance(front_index, numbers.Integral) or front_index < 0
-        ):
-            raise InvalidConfig(f"{owner}.front_index must be an integer >= 0 or None, got {front_index!r}")
+        self.speed = positive(f"{owner}.speed", speed)
+        self.threshold = positive(f"{owner}.threshold", threshold)
+        self.front_half_width = angle(f"{owner}.front_half_width", front_half_width, high=0.5 * math.pi,
+                                      allow_zero=True)
+        self.front_index = optional_integer(f"{owner}.front_index", front_index, low=0)
         if front_index is not None and self.front_half_width > 0.0:
             raise InvalidConfig(
                 f"{owner}: front_index={front_index!r} reads one raw beam; front_half_width must be 0, "
                 f"got {front_half_width!r}"
             )
-        self.front_index = None if front_index is None else int(front_index)
         self.robot = optional_robot(owner, robot)
         self._state = STATES[0]
         self._front: RangeCheck | None = None
@@ -149,24 +140,18 @@ class StopAtWall(Policy):
         self._state = STATES[0]
         self._front = None
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
+    def _decide(self, scan: LaserScan) -> Command:
         """``(speed, 0)`` while the front reading is beyond the threshold, else ``(0, 0)``.
 
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
         Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
             InvalidScan: in raw-index mode, the scan has no beam ``front_index`` (the tutorial
                 would fail with an ``IndexError``).
         """
-        scan = require_scan(type(self).__name__, scan)
         front = self._read_front(scan)
         self._front = front
         go = front.proximity is Proximity.CLEAR
         self._state = STATES[int(go)]
-        return limited(Command(self.speed if go else 0.0, 0.0), self.robot)
+        return Command(self.speed if go else 0.0, 0.0)
 
     def _read_front(self, scan: LaserScan) -> RangeCheck:
         if self.front_index is not None:

@@ -6,19 +6,16 @@ import math
 from collections.abc import Mapping
 from types import MappingProxyType
 
+from safenav._checks import angle, positive
 from safenav.errors import InvalidConfig
-from safenav.geometry import TWO_PI, Pose2D
+from safenav.geometry import TWO_PI
 from safenav.reference.base import (
-    Policy,
     Proximity,
     RangeCheck,
-    angle_in,
+    TutorialController,
     check_sector,
     command_pair,
-    limited,
     optional_robot,
-    positive_number,
-    require_scan,
 )
 from safenav.robot import Command, RobotSpec
 from safenav.scan import LaserScan
@@ -70,7 +67,7 @@ CASE_DESCRIPTIONS = (
 """The tutorial's log strings, by case number (0 is its ``else`` branch)."""
 
 
-class WallFollower(Policy):
+class WallFollower(TutorialController):
     """Find a wall, turn left at corners, and follow the wall on the robot's right.
 
     Reproduces tutorial 3 (The Construct, "Exploring ROS with a 2 wheeled robot", m2wr with
@@ -106,7 +103,7 @@ class WallFollower(Policy):
       ... of the m2wr's scan (which also skip the boundary beams 143, 287, 431, 575 and
       714..719). Any lidar that covers the slices works, whatever its field of view,
       ``angle_min`` or mount yaw. A beam exactly on a boundary belongs to both slices.
-    * Readings follow REP-117 (DESIGN.md section 2): ``+inf`` is free up to ``range_max``
+    * Readings follow REP-117: ``+inf`` is free up to ``range_max``
       (clamped to 10 m as in the tutorial); ``-inf`` is near; ``NaN`` and finite values outside
       ``[range_min, range_max]`` are ignored. A region with no informative beam, or partly
       outside the field of view with nothing near in the rest, is *unknown* and counts as near
@@ -149,13 +146,13 @@ class WallFollower(Policy):
             InvalidConfig: a value is out of range (the message names it).
         """
         owner = type(self).__name__
-        self.threshold = positive_number(owner, "threshold", threshold)
-        self.clamp = positive_number(owner, "clamp", clamp)
+        self.threshold = positive(f"{owner}.threshold", threshold)
+        self.clamp = positive(f"{owner}.clamp", clamp)
         if self.clamp <= self.threshold:
             raise InvalidConfig(
                 f"{owner}.clamp must be > threshold={self.threshold!r} (else every region reads near), got {clamp!r}"
             )
-        self.span = angle_in(owner, "span", span, TWO_PI)
+        self.span = angle(f"{owner}.span", span, high=TWO_PI)
         self.commands = (
             command_pair(owner, "find_wall", find_wall),
             command_pair(owner, "turn_left", turn_left),
@@ -213,17 +210,8 @@ class WallFollower(Policy):
         self._case = None
         self._checks = MappingProxyType({})
 
-    def __call__(self, scan: LaserScan, pose: Pose2D | None = None) -> Command:
-        """The command of the state the tutorial's case analysis gives for this scan.
-
-        Args:
-            scan: the latest scan.
-            pose: unused.
-
-        Raises:
-            InvalidScanType: ``scan`` is not a :class:`~safenav.scan.LaserScan`.
-        """
-        scan = require_scan(type(self).__name__, scan)
+    def _decide(self, scan: LaserScan) -> Command:
+        """The command of the state the tutorial's case analysis gives for this scan."""
         checks = MappingProxyType({
             name: check_sector(scan, lo, hi, self.threshold) for name, (lo, hi) in self._sectors.items()
         })
@@ -234,4 +222,4 @@ class WallFollower(Policy):
         else:
             near = tuple(check.proximity in (Proximity.NEAR, Proximity.UNKNOWN) for check in used)
             self._case, self._state_id = CASES[near]
-        return limited(self.commands[self._state_id], self.robot)
+        return self.commands[self._state_id]

@@ -1,3 +1,5 @@
+"""Pictures of one episode: a PNG with the trajectory, the scan and the collisions; an animated GIF."""
+
 import math
 
 import numpy as np
@@ -6,16 +8,8 @@ from matplotlib.colors import to_rgb
 from PIL import Image
 
 from safenav import InvalidConfig, Pose2D, preset
-from safenav.render import (
-    COLLISION_COLOR,
-    SCAN_COLOR,
-    TRAJECTORY_COLOR,
-    plot_episode,
-    plot_world,
-    pose_array,
-    save_gif,
-    scan_points_world,
-)
+from safenav.plots import plot_episode, pose_array, save_gif, scan_points_world
+from safenav.plots.episode import COLLISION_COLOR, SCAN_COLOR, TRAJECTORY_COLOR
 from safenav.synthetic import synthetic_scan
 from safenav.worlds import Box, Cylinder, World, tutorial_world
 
@@ -30,14 +24,6 @@ def _straight_run(world, n=30, length=2.0):
     start = world.start
     return np.array([(start.x + length * t * math.cos(start.yaw), start.y + length * t * math.sin(start.yaw),
                       start.yaw) for t in np.linspace(0.0, 1.0, n)])
-
-
-def test_plot_world_draws_every_obstacle_within_the_bounds():
-    world = tutorial_world("obstacle_avoidance")
-    ax = plot_world(world)
-    assert len(ax.patches) == len(world.obstacles)
-    assert ax.get_xlim() == pytest.approx(world.bounds[0::2]) and ax.get_ylim() == pytest.approx(world.bounds[1::2])
-    assert ax.get_aspect() == 1.0
 
 
 def test_plot_episode_writes_a_png_with_trajectory_scan_and_collisions(tmp_path):

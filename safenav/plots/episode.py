@@ -1,48 +1,36 @@
-"""Top-down pictures of worlds and episodes: PNG figures and animated GIFs.
+"""Top-down pictures of one episode: a PNG of the whole run, an animated GIF with the lidar.
 
-Everything draws on :class:`matplotlib.figure.Figure` objects with the Agg canvas,
-never through ``pyplot``, so nothing opens a window and no global figure state is
-kept. :func:`plot_world` draws the obstacles (and the goal) on an axes;
-:func:`plot_episode` adds the trajectory, the body at the start and the end, the
-collision points and optionally a scan; :func:`save_gif` animates an episode.
+:func:`plot_episode` draws the world, the trajectory, the body at the start and the end,
+the collision points and optionally a scan; :func:`save_gif` animates an episode.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.animation import PillowWriter
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle as CirclePatch
-from matplotlib.patches import Polygon as PolygonPatch
 
+from safenav._checks import integer, positive
+from safenav._optional import require
 from safenav.errors import InvalidConfig
 from safenav.geometry import Pose2D
+from safenav.plots.world import matplotlib_module, new_figure, plot_world
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
-from safenav.worlds import Cylinder, World
+from safenav.worlds import World
 
-__all__ = ["plot_episode", "plot_world", "pose_array", "save_gif", "scan_points_world"]
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
-OBSTACLE_COLOR = "#7f7f7f"
+__all__ = ["plot_episode", "pose_array", "save_gif", "scan_points_world"]
+
 TRAJECTORY_COLOR = "#1f77b4"
 BODY_COLOR = "#2ca02c"
 COLLISION_COLOR = "#d62728"
 SCAN_COLOR = "#ff7f0e"
-GOAL_COLOR = "#9467bd"
-
-
-def _new_axes(figsize: tuple[float, float] = (6.0, 6.0), dpi: float = 100.0) -> Axes:
-    figure = Figure(figsize=figsize, dpi=dpi)
-    FigureCanvasAgg(figure)
-    return figure.add_subplot()
 
 
 def pose_array(poses: Any) -> np.ndarray:
@@ -73,51 +61,18 @@ def scan_points_world(scan: LaserScan, pose: Pose2D | Sequence[float]) -> np.nda
     return Pose2D(*pose).to_parent(scan.points("base"))
 
 
-def plot_world(world: World, ax: Axes | None = None, *, show_start: bool = True) -> Axes:
-    """Draw the obstacles, the goal and (optionally) the start position of ``world``.
-
-    Args:
-        world: the world.
-        ax: the axes to draw on; a new Agg figure when ``None``.
-        show_start: mark the start position with a small cross.
-
-    Returns:
-        The axes, with equal aspect and limits set to ``world.bounds``.
-    """
-    if ax is None:
-        ax = _new_axes()
-    for obstacle in world.obstacles:
-        if isinstance(obstacle, Cylinder):
-            patch = CirclePatch(obstacle.center, obstacle.radius, facecolor=OBSTACLE_COLOR, edgecolor="black",
-                                linewidth=0.6)
-        else:
-            patch = PolygonPatch(obstacle.polygon(), closed=True, facecolor=OBSTACLE_COLOR, edgecolor="black",
-                                 linewidth=0.6)
-        ax.add_patch(patch)
-    if world.goal is not None:
-        ax.plot(*world.goal, marker="*", markersize=14, color=GOAL_COLOR, linestyle="none", label="goal")
-    if show_start:
-        ax.plot(world.start.x, world.start.y, marker="x", markersize=6, color="black", linestyle="none")
-    xmin, ymin, xmax, ymax = world.bounds
-    ax.set_xlim(xmin, xmax)
-    ax.set_ylim(ymin, ymax)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.grid(True, linewidth=0.3, alpha=0.5)
-    return ax
-
-
 def _draw_body(ax: Axes, robot: RobotSpec, pose: Sequence[float], *, style: str = "-", alpha: float = 1.0,
                label: str | None = None) -> list[Any]:
     """Draw the body disk, the footprint (if any), the heading and the lidar mount at ``pose``."""
+    patches = matplotlib_module("patches")
     base = Pose2D(*pose)
-    artists: list[Any] = [ax.add_patch(CirclePatch((base.x, base.y), robot.radius, fill=False, edgecolor=BODY_COLOR,
-                                                   linestyle=style, linewidth=1.2, alpha=alpha, label=label))]
+    artists: list[Any] = [ax.add_patch(patches.Circle((base.x, base.y), robot.radius, fill=False,
+                                                      edgecolor=BODY_COLOR, linestyle=style, linewidth=1.2,
+                                                      alpha=alpha, label=label))]
     if robot.footprint is not None:
         corners = base.to_parent(np.array(robot.footprint))
-        artists.append(ax.add_patch(PolygonPatch(corners, closed=True, facecolor=BODY_COLOR, alpha=0.25 * alpha,
-                                                 edgecolor=BODY_COLOR, linewidth=0.8)))
+        artists.append(ax.add_patch(patches.Polygon(corners, closed=True, facecolor=BODY_COLOR, alpha=0.25 * alpha,
+                                                    edgecolor=BODY_COLOR, linewidth=0.8)))
     tip = base.to_parent(np.array([[robot.radius, 0.0]]))[0]
     artists.extend(ax.plot([base.x, tip[0]], [base.y, tip[1]], color=BODY_COLOR, linewidth=1.5, alpha=alpha))
     sensor = base.compose(robot.lidar.mount)
@@ -156,7 +111,7 @@ def plot_episode(
         The figure (Agg canvas).
     """
     trajectory = pose_array(poses)
-    ax = _new_axes(figsize=(7.5, 6.0), dpi=dpi)
+    ax = new_figure((7.5, 6.0), dpi).add_subplot()
     plot_world(world, ax)
     ax.plot(trajectory[:, 0], trajectory[:, 1], color=TRAJECTORY_COLOR, linewidth=1.5, label="trajectory")
     _draw_body(ax, robot, trajectory[0], style="--", alpha=0.7, label="start")
@@ -220,24 +175,23 @@ def save_gif(
     trajectory = pose_array(poses)
     if scans is not None and len(scans) != len(trajectory):
         raise InvalidConfig(f"scans must have one entry per pose ({len(trajectory)}), got {len(scans)}")
-    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
-        raise InvalidConfig(f"stride must be an integer >= 1, got {stride!r}")
-    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-        raise InvalidConfig(f"fps must be a finite number > 0, got {fps!r}")
+    stride = integer("save_gif stride", stride, low=1)
+    fps = positive("save_gif fps", fps)
+    require("PIL", extra="sim", purpose="writing GIFs (safenav.plots.save_gif)", package="pillow")
     frames = list(range(0, len(trajectory), stride))
     if frames[-1] != len(trajectory) - 1:
         frames.append(len(trajectory) - 1)
-    ax = _new_axes(figsize=(5.0, 5.0), dpi=dpi)
+    ax = new_figure((5.0, 5.0), dpi).add_subplot()
     plot_world(world, ax)
     ax.set_title(world.name if title is None else title)
     (line,) = ax.plot([], [], color=TRAJECTORY_COLOR, linewidth=1.5)
-    ray_lines = LineCollection([], colors=SCAN_COLOR, linewidths=0.3, alpha=0.6)
+    ray_lines = matplotlib_module("collections").LineCollection([], colors=SCAN_COLOR, linewidths=0.3, alpha=0.6)
     ax.add_collection(ray_lines)
     (scan_dots,) = ax.plot([], [], linestyle="none", marker=".", markersize=2, color=SCAN_COLOR)
     figure = ax.figure
     figure.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    writer = PillowWriter(fps=fps)
+    writer = matplotlib_module("animation").PillowWriter(fps=fps)
     body: list[Any] = []
     with writer.saving(figure, str(path), dpi):
         for index in frames:

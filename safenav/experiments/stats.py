@@ -1,0 +1,143 @@
+"""Statistics of experiments: Wilson intervals, and one record per cell aggregated from its episodes."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from safenav.errors import InvalidConfig
+from safenav.experiments.specs import Cell
+
+if TYPE_CHECKING:
+    from safenav.episode import EpisodeMetrics
+    from safenav.experiments.runner import EpisodeOutcome
+
+__all__ = ["cell_record", "cell_records", "wilson_interval"]
+
+Z95 = 1.959963984540054
+"""The 97.5 % quantile of the standard normal distribution."""
+
+
+def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (95 % by default).
+
+    Unlike the normal approximation it stays inside [0, 1] and is not empty at 0 or n
+    successes: 0 collisions in 10 episodes gives [0, 0.278].
+
+    Args:
+        successes: events counted (collisions).
+        trials: episodes.
+        z: the normal quantile of the confidence level (1.96 for 95 %).
+
+    Raises:
+        InvalidConfig: ``trials`` < 1 or ``successes`` outside ``[0, trials]``.
+    """
+    if trials < 1 or not 0 <= successes <= trials:
+        raise InvalidConfig(f"wilson_interval needs 0 <= successes <= trials and trials >= 1, "
+                            f"got {successes}/{trials}")
+    p = successes / trials
+    denominator = 1.0 + z * z / trials
+    centre = (p + z * z / (2 * trials)) / denominator
+    half = z / denominator * math.sqrt(p * (1.0 - p) / trials + z * z / (4 * trials * trials))
+    # The bounds are exactly 0 at 0 successes and 1 at n; say so rather than keep the rounding error.
+    low = 0.0 if successes == 0 else float(np.clip(centre - half, 0.0, 1.0))
+    high = 1.0 if successes == trials else float(np.clip(centre + half, 0.0, 1.0))
+    return low, high
+
+
+def _finite_or_none(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
+                seeds: Sequence[int] | None = None, wall_times: Sequence[float] | None = None) -> dict[str, Any]:
+    """Aggregate the episodes of one cell.
+
+    Args:
+        cell: the cell.
+        robot: the preset that ran it.
+        metrics: one per episode.
+        seeds: the episodes' seeds, for the record.
+        wall_times: the episodes' wall-clock times [s], for the record.
+
+    Returns:
+        A JSON-ready record (``None`` where a value does not apply):
+
+        * ``episodes``, ``collisions``, ``collision_rate`` and its Wilson 95 % interval ``collision_rate_ci``;
+        * ``min_clearance``: ``min``, ``p5`` and ``median`` over the episodes of each episode's smallest
+          body clearance [m] (negative: overlap);
+        * ``intervention``: mean over the episodes of the mean ``||u - u_nom||``;
+        * ``distance``: mean path length [m]; ``progress``: the mean goal progress [m] where there is
+          a goal, else the mean distance (``progress_kind`` says which);
+        * ``goal_success``, ``goal_reached``, ``time_to_goal`` (``mean``, ``median`` over the successes [s]);
+        * ``stuck_time``: mean time the nominal wanted to move and the robot did not [s], and
+          ``stuck_fraction`` of the episode time;
+        * ``fallbacks``: periods in which the filter braked because its optimiser failed (total);
+        * ``filter_p50_us``, ``filter_p99_us``, ``filter_calls``: every filter call of the cell pooled [us];
+        * ``episode_wall_s``: mean wall-clock time of an episode [s] (``None`` without ``wall_times``);
+        * ``statuses``: filter statuses summed over the episodes; ``collided_seeds``.
+
+    Raises:
+        InvalidConfig: no episodes.
+    """
+    if not metrics:
+        raise InvalidConfig(f"cell {cell} has no episodes")
+    seeds = list(range(len(metrics))) if seeds is None else [int(seed) for seed in seeds]
+    episodes = len(metrics)
+    collided = [bool(m.collided) for m in metrics]
+    collisions = sum(collided)
+    clearance = np.array([m.min_clearance for m in metrics], dtype=float)
+    distance = float(np.mean([m.distance for m in metrics]))
+    has_goal = metrics[0].goal_reached is not None
+    times = [m.time_to_goal for m in metrics if m.goal_reached]
+    filter_times = np.concatenate([m.filter_times for m in metrics])
+    statuses: dict[str, int] = {}
+    for m in metrics:
+        for status, count in m.statuses.items():
+            statuses[status] = statuses.get(status, 0) + count
+    return {
+        "scenario": cell.scenario,
+        "robot": robot,
+        "policy": cell.policy,
+        "filter": cell.filter,
+        "episodes": episodes,
+        "collisions": collisions,
+        "collision_rate": collisions / episodes,
+        "collision_rate_ci": list(wilson_interval(collisions, episodes)),
+        "min_clearance": {"min": float(clearance.min()), "p5": float(np.percentile(clearance, 5)),
+                          "median": float(np.median(clearance))},
+        "intervention": float(np.mean([m.mean_intervention for m in metrics])),
+        "distance": distance,
+        "progress": float(np.mean([m.goal_progress for m in metrics])) if has_goal else distance,
+        "progress_kind": "goal_progress" if has_goal else "distance",
+        "goal_success": len(times) / episodes if has_goal else None,
+        "goal_reached": len(times) if has_goal else None,
+        "time_to_goal": {"mean": float(np.mean(times)), "median": float(np.median(times))} if times else None,
+        "stuck_time": float(np.mean([m.stuck_time for m in metrics])),
+        "stuck_fraction": float(np.mean([m.stuck_time / m.time if m.time > 0 else 0.0 for m in metrics])),
+        "fallbacks": int(sum(m.fallbacks for m in metrics)),
+        "filter_calls": int(filter_times.size),
+        "filter_p50_us": _finite_or_none(float(np.median(filter_times)) * 1e6) if filter_times.size else None,
+        "filter_p99_us": _finite_or_none(float(np.percentile(filter_times, 99)) * 1e6) if filter_times.size
+        else None,
+        "episode_wall_s": float(np.mean(wall_times)) if wall_times else None,
+        "statuses": dict(sorted(statuses.items())),
+        "seeds": seeds,
+        "collided_seeds": [seed for seed, hit in zip(seeds, collided, strict=True) if hit],
+    }
+
+
+def cell_records(outcomes: Sequence[EpisodeOutcome]) -> list[dict[str, Any]]:
+    """One :func:`cell_record` per cell, cells in order of first appearance, episodes in seed order."""
+    groups: dict[Cell, list[EpisodeOutcome]] = {}
+    for outcome in outcomes:
+        groups.setdefault(outcome.spec.cell, []).append(outcome)
+    records = []
+    for cell, group in groups.items():
+        group = sorted(group, key=lambda outcome: outcome.spec.seed)
+        records.append(cell_record(cell, group[0].robot, [o.metrics for o in group], [o.spec.seed for o in group],
+                                   [o.wall_time for o in group]))
+    return records

@@ -1,0 +1,38 @@
+"""Worlds as data: obstacles, a start pose and an optional goal, built into a simulator on demand.
+
+=====================  ========================================================================
+module                 holds
+=====================  ========================================================================
+``shapes``             :class:`Box`, :class:`Cylinder`, :class:`Wall`, :func:`room`, :func:`gap`
+``world``              :class:`World` (exact signed distances, analytic scene, the simulator's mesh)
+``tutorial``           :data:`TUTORIALS`, the three classic tutorials; :func:`tutorial_world`
+``generator``          :func:`random_world`, seeded random arenas; :func:`reachable`
+=====================  ========================================================================
+
+Drawing a world is :func:`safenav.plots.plot_world`.
+"""
+
+from safenav.worlds.generator import GRID_RESOLUTION, START_CLEARANCE, random_world, reachable
+from safenav.worlds.shapes import WALL_THICKNESS, Box, Cylinder, Obstacle, Wall, gap, room
+from safenav.worlds.tutorial import TUTORIAL_WORLDS, TUTORIALS, Tutorial, tutorial_world
+from safenav.worlds.world import World, obstacle_mesh
+
+__all__ = [
+    "GRID_RESOLUTION",
+    "START_CLEARANCE",
+    "TUTORIALS",
+    "TUTORIAL_WORLDS",
+    "WALL_THICKNESS",
+    "Box",
+    "Cylinder",
+    "Obstacle",
+    "Tutorial",
+    "Wall",
+    "World",
+    "gap",
+    "obstacle_mesh",
+    "random_world",
+    "reachable",
+    "room",
+    "tutorial_world",
+]

@@ -1,0 +1,49 @@
+"""The collision benchmark: the quick sweep end to end, and its one-line errors."""
+
+import csv
+import json
+
+import pytest
+from PIL import Image
+
+from benchmarks import collision_rates
+
+REQUIRED_KEYS = {"scenario", "robot", "policy", "filter", "episodes", "collisions", "collision_rate",
+                 "min_clearance", "intervention", "progress", "goal_success", "stuck_time", "fallbacks",
+                 "filter_p50_us", "filter_p99_us"}
+
+
+@pytest.mark.sim
+def test_quick_collision_benchmark(tmp_path, capsys):
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--quick", "--json", str(out), "--csv", str(tmp_path / "rates.csv"),
+                                 "--plots", str(tmp_path / "plots"), "--no-progress"])
+    assert code == 0
+    report = json.loads(out.read_text())
+    cells = report["cells"]
+    assert cells and all(set(cell) >= REQUIRED_KEYS for cell in cells)
+    assert report["config"]["quick"] is True and report["config"]["episodes"] == sum(c["episodes"] for c in cells)
+    naive = [cell for cell in cells if cell["filter"] == "none"]
+    cbf = [cell for cell in cells if cell["filter"] == "cbf"]
+    assert any(cell["collisions"] > 0 for cell in naive)
+    assert cbf and all(cell["collisions"] == 0 for cell in cbf), [c for c in cbf if c["collisions"]]
+    assert all(cell["filter_p50_us"] is None for cell in naive)
+    assert all(cell["filter_p50_us"] > 0 and cell["filter_p99_us"] >= cell["filter_p50_us"] for cell in cbf)
+    stdout = capsys.readouterr().out
+    assert "| stop_at_wall | rosbot | stop_at_wall_buggy | none |" in stdout
+    with (tmp_path / "rates.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == len(cells) and "min_clearance_p5" in rows[0] and "collision_rate_ci_high" in rows[0]
+    pngs = sorted((tmp_path / "plots").glob("*.png"))
+    assert {p.name for p in pngs} >= {"collision_rates.png", "clearance_histogram.png",
+                                      "trajectories_stop_at_wall.png"}
+    for png in pngs:
+        with Image.open(png) as image:
+            image.verify()
+
+
+def test_benchmark_rejects_unknown_names(capsys):
+    assert collision_rates.main(["--scenarios", "moon", "--filters", "none"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("collision_rates: error: unknown scenario 'moon'; expected one of:")
+    assert "\n" not in error
