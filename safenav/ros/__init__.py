@@ -4,7 +4,7 @@
 module                        what it holds
 ============================  =================================================================
 :mod:`safenav.ros.params`     the parameter table and :class:`NodeConfig` (validated)
-:mod:`safenav.ros.sources`    obstacle sources (LaserScan; the registry a PointCloud2 source joins)
+:mod:`safenav.ros.sources`    obstacle sources: LaserScan and PointCloud2 topics, by ``<source>.type``
 :mod:`safenav.ros.core`       :class:`SafetyCore`: inputs, the timer step, state, diagnostics
 :mod:`safenav.ros.apps`       the tutorial controllers and the PyBullet simulator as nodes
 :mod:`safenav.ros.messages`   filling and reading messages, identical on rospy and rclpy
@@ -17,7 +17,7 @@ Importing this package imports no ROS: only the two transports do.
 
 from safenav.ros.core import NodeState, SafetyCore
 from safenav.ros.params import PARAMETERS, NodeConfig, SourceConfig
-from safenav.ros.sources import SOURCE_TYPES, ScanSource, Source
+from safenav.ros.sources import SOURCE_TYPES, PointCloudSource, ScanSource, Source
 
-__all__ = ["PARAMETERS", "SOURCE_TYPES", "NodeConfig", "NodeState", "SafetyCore", "ScanSource", "Source",
-           "SourceConfig"]
+__all__ = ["PARAMETERS", "SOURCE_TYPES", "NodeConfig", "NodeState", "PointCloudSource", "SafetyCore", "ScanSource",
+           "Source", "SourceConfig"]

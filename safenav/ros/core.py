@@ -225,8 +225,10 @@ class SafetyCore:
         self.causes = CauseLog(warn, info)
         self._info = info
         first = config.sources[0]
-        self._build(config.robot.replace(lidar=dataclasses.replace(config.robot.lidar, mount=first.mount,
-                                                                   frame_id=first.name), extra_lidars=()))
+        lidars = [source.lidar for source in config.sources if source.lidar]   # point-cloud sensors, known ahead
+        if first.lidar is None:     # a scan source: the preset's lidar on the source's mount
+            lidars.insert(0, dataclasses.replace(config.robot.lidar, mount=first.mount, frame_id=first.name))
+        self._build(config.robot.replace(lidar=lidars[0], extra_lidars=tuple(lidars[1:])))
         self._confirmed: set[str] = set()
         self.enabled = config.enabled
         self._scans: dict[str, Timed | None] = dict.fromkeys(self.sources)

@@ -23,8 +23,9 @@ from typing import Any, NamedTuple
 from safenav import _checks
 from safenav.errors import InvalidConfig, UnknownName
 from safenav.filters import CBFConfig, MPCConfig, ZonesConfig
-from safenav.geometry import Pose2D
-from safenav.robot import PRESET_NAMES, RobotSpec, preset
+from safenav.geometry import TWO_PI, Pose2D
+from safenav.pointcloud import CLOUD_AXES, EMPTY_BIN_READINGS, CloudSlice
+from safenav.robot import PRESET_NAMES, LidarSpec, RobotSpec, preset
 from safenav.ros.sources import SOURCE_TYPES
 
 __all__ = ["FILTER_CONFIGS", "PARAMETERS", "ROBOT_OVERRIDES", "NodeConfig", "Parameter", "SourceConfig"]
@@ -63,12 +64,27 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("control_period", 0.05, "period of the cmd_vel output and the filter's dt [s]"),
     Parameter("step_on_scan", True, "also filter at once when a scan arrives (the timer then restarts), "
                                     "so a fresh scan never waits for the next tick"),
-    Parameter("sources", ["scan"], "names of the obstacle sources; each has <source>.topic, .type, .mount, .timeout"),
+    Parameter("sources", ["scan"], "names of the obstacle sources; each has <source>.topic, .type, .mount, .timeout "
+                                    "(and a pointcloud source its height band and field of view)"),
     Parameter("<source>.topic", "<source>", "topic of the source"),
-    Parameter("<source>.type", "scan", f"message type: {', '.join(SOURCE_TYPES)} (sensor_msgs/LaserScan)"),
+    Parameter("<source>.type", "scan", f"message type: {', '.join(SOURCE_TYPES)} "
+                                       "(sensor_msgs/LaserScan, sensor_msgs/PointCloud2)"),
     Parameter("<source>.mount", None, "pose of the sensor on the base [x, y, yaw] [m, m, rad] "
                                       "(default: the preset's lidar mount)"),
     Parameter("<source>.timeout", 0.5, "a source older than this brakes the robot [s]"),
+    Parameter("<source>.z_min", None, "pointcloud, required: lowest point kept [m], sensor frame, z up"),
+    Parameter("<source>.z_max", None, "pointcloud, required: highest point kept [m], sensor frame, z up"),
+    Parameter("<source>.angle_min", None, "pointcloud, required: first bearing of the field of view [rad], "
+                                          "sensor frame"),
+    Parameter("<source>.angle_max", None, "pointcloud, required: last bearing of the field of view [rad]; "
+                                          "bearings outside it are unknown"),
+    Parameter("<source>.angle_increment", math.pi / 360, "pointcloud: width of a bearing bin (one beam) [rad]"),
+    Parameter("<source>.range_min", 0.0, "pointcloud: nearer points read as an object at the sensor [m]"),
+    Parameter("<source>.range_max", 10.0, "pointcloud: farther points read as free up to it [m]"),
+    Parameter("<source>.empty", "invalid", "pointcloud: a bin with no point is invalid (unknown: a depth "
+                                           "camera's hole) or no_return (free: a 3D lidar's sky)"),
+    Parameter("<source>.axes", "rep103", "pointcloud: the cloud frame's axes, rep103 (x forward, z up) or "
+                                         "optical (z forward, y down: a camera's optical frame)"),
     Parameter("cmd_vel_in_topic", "cmd_vel_in", "nominal command input"),
     Parameter("cmd_vel_out_topic", "cmd_vel", "filtered command output"),
     Parameter("stamped", False, "cmd_vel in and out are geometry_msgs/TwistStamped instead of Twist"),
@@ -83,6 +99,8 @@ PARAMETERS: tuple[Parameter, ...] = (
 
 _PLAIN = {p.name: p for p in PARAMETERS if not p.name.startswith("<")}
 _PER_SOURCE = {p.name.split(".", 1)[1]: p for p in PARAMETERS if p.name.startswith("<source>.")}
+_CLOUD_KEYS = ("z_min", "z_max", "angle_min", "angle_max", "angle_increment", "range_min", "range_max", "empty", "axes")
+"""Per-source parameters of ``pointcloud`` sources only (how :mod:`safenav.pointcloud` flattens the cloud)."""
 
 
 def _string(name: str, value: Any, *, empty: bool = False) -> str:
@@ -102,9 +120,13 @@ class SourceConfig:
     Attributes:
         name: the source's name (its parameters are ``<name>.topic`` and so on).
         topic: topic to subscribe to.
-        type: key of :data:`~safenav.ros.sources.SOURCE_TYPES` (``"scan"``).
+        type: key of :data:`~safenav.ros.sources.SOURCE_TYPES` (``"scan"`` or ``"pointcloud"``).
         mount: pose of the sensor frame on the base [m, m, rad].
         timeout: largest age the filter acts on [s]; older data brakes the robot.
+        lidar: the sensor as a planar lidar, for the types whose messages do not describe it
+            (``pointcloud``: field of view, range limits and the :class:`~safenav.pointcloud.CloudSlice`);
+            ``None`` for ``scan`` (a LaserScan describes its own layout). Its mount and
+            ``frame_id`` are set to the source's.
     """
 
     name: str
@@ -112,6 +134,7 @@ class SourceConfig:
     type: str = "scan"
     mount: Pose2D = Pose2D()
     timeout: float = 0.5
+    lidar: LidarSpec | None = None
 
     def __post_init__(self) -> None:
         _string("sources[]", self.name)
@@ -120,6 +143,14 @@ class SourceConfig:
         x, y, yaw = _triple(f"{self.name}.mount", self.mount)
         object.__setattr__(self, "mount", Pose2D(x, y, yaw))
         object.__setattr__(self, "timeout", _duration(f"{self.name}.timeout", self.timeout))
+        if SOURCE_TYPES[self.type].cloud:
+            if not isinstance(self.lidar, LidarSpec) or self.lidar.cloud is None:
+                raise InvalidConfig(f"source {self.name!r} of type {self.type} needs a LidarSpec with a CloudSlice "
+                                    f"(its field of view and height band), got {self.lidar!r}")
+            object.__setattr__(self, "lidar", dataclasses.replace(self.lidar, mount=self.mount, frame_id=self.name))
+        elif self.lidar is not None:
+            raise InvalidConfig(f"source {self.name!r} of type {self.type} takes no LidarSpec (its messages "
+                                f"describe the sensor), got {self.lidar!r}")
 
 
 def _triple(name: str, value: Any) -> tuple[float, float, float]:
@@ -275,6 +306,51 @@ def _robot(given: dict[str, Any]) -> RobotSpec:
 def _source(name: str, given: dict[str, Any], robot: RobotSpec) -> SourceConfig:
     """The source ``name`` from its ``<name>.*`` parameters (removed from ``given``)."""
     values = {key: given.pop(f"{name}.{key}") for key in _PER_SOURCE if f"{name}.{key}" in given}
-    return SourceConfig(name=name, topic=values.get("topic", name), type=values.get("type", "scan"),
+    source_type = _checks.choice("source type", values.get("type", _PER_SOURCE["type"].default), tuple(SOURCE_TYPES))
+    lidar = None
+    if SOURCE_TYPES[source_type].cloud:
+        lidar = _cloud_lidar(name, values)
+    else:
+        cloud_only = [key for key in values if key in _CLOUD_KEYS]
+        if cloud_only:
+            raise InvalidConfig(f"parameter {name}.{cloud_only[0]} applies to pointcloud sources only; "
+                                f"source {name!r} is of type {source_type}")
+    return SourceConfig(name=name, topic=values.get("topic", name), type=source_type,
                         mount=values.get("mount", robot.lidar.mount),
-                        timeout=values.get("timeout", _PER_SOURCE["timeout"].default))
+                        timeout=values.get("timeout", _PER_SOURCE["timeout"].default), lidar=lidar)
+
+
+def _cloud_lidar(name: str, values: Mapping[str, Any]) -> LidarSpec:
+    """A ``pointcloud`` source's sensor as a planar lidar, from its ``<name>.*`` parameters.
+
+    Beam ``i`` is the bearing bin ``angle_min + i * angle_increment`` up to ``angle_max``, and at
+    most one turn of bins (``-pi..pi`` does not repeat the direction ``pi``).
+
+    Raises:
+        InvalidConfig: a required parameter is missing, or a value is out of range (named).
+        UnknownName: ``empty`` or ``axes`` is not a known convention.
+    """
+    missing = [f"{name}.{key}" for key in ("mount", *_CLOUD_KEYS)
+               if key not in values and _PER_SOURCE[key].default is None]
+    if missing:
+        raise InvalidConfig(f"pointcloud source {name!r} needs parameter{'s' * (len(missing) > 1)} "
+                            f"{', '.join(missing)}: the sensor's mount, height band and field of view have no default")
+
+    def value(key: str, **bounds: Any) -> float:
+        return _checks.number(f"parameter {name}.{key}", values.get(key, _PER_SOURCE[key].default), **bounds)
+
+    z_min = value("z_min")
+    z_max = value("z_max", low=z_min, low_open=True)
+    angle_min = value("angle_min", low=-TWO_PI, high=TWO_PI)
+    angle_max = value("angle_max", low=angle_min, high=angle_min + TWO_PI, low_open=True)
+    increment = value("angle_increment", low=0.0, high=angle_max - angle_min, low_open=True)
+    range_min = value("range_min", low=0.0)
+    range_max = value("range_max", low=range_min, low_open=True)
+    empty = _checks.choice(f"{name}.empty reading", values.get("empty", _PER_SOURCE["empty"].default),
+                           EMPTY_BIN_READINGS)
+    axes = _checks.choice(f"{name}.axes convention", values.get("axes", _PER_SOURCE["axes"].default), CLOUD_AXES)
+    slack = 1e-9   # a span that is a whole number of increments in decimal is not always one in binary
+    n_beams = min(math.floor((angle_max - angle_min) / increment + slack) + 1, math.floor(TWO_PI / increment + slack))
+    return LidarSpec(n_beams=n_beams, angle_min=angle_min, angle_max=angle_min + (n_beams - 1) * increment,
+                     range_min=range_min, range_max=range_max, frame_id=name,
+                     cloud=CloudSlice(z_min=z_min, z_max=z_max, empty=empty, axes=axes))

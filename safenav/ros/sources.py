@@ -5,16 +5,18 @@ A source subscribes to one topic of one message type and converts each message i
 keeps the latest converted message per source, with its age, and brakes when any source is
 stale. :data:`SOURCE_TYPES` maps a ``<source>.type`` parameter to its class:
 
-============  ==========================  =======================================
-type          message                     conversion
-============  ==========================  =======================================
-``scan``      ``sensor_msgs/LaserScan``   :meth:`LaserScan.from_msg <safenav.scan.LaserScan.from_msg>`
-============  ==========================  =======================================
+==============  ============================  =======================================
+type            message                       conversion
+==============  ============================  =======================================
+``scan``        ``sensor_msgs/LaserScan``     :meth:`LaserScan.from_msg <safenav.scan.LaserScan.from_msg>`
+``pointcloud``  ``sensor_msgs/PointCloud2``   :func:`safenav.pointcloud.scan_from_cloud` with the
+                                              source's :attr:`~safenav.ros.params.SourceConfig.lidar`
+==============  ============================  =======================================
 
-A ``sensor_msgs/PointCloud2`` source joins the table when ``safenav.pointcloud`` lands
-(the wiring issue): a subclass of :class:`Source` with ``message = ("sensor_msgs",
-"PointCloud2")`` whose :meth:`~Source.convert` calls it. Transports look a source's message
-class up by :attr:`Source.message`, so neither transport changes.
+Either way the result is a scan on the source's mount whose ``frame_id`` is the source's name,
+so the node's robot holds one lidar per source and the filter merges them like several lidars.
+Transports look a source's message class up by :attr:`Source.message`, so a new type is one
+subclass here and one row of the table.
 """
 
 from __future__ import annotations
@@ -24,12 +26,14 @@ from collections.abc import Mapping
 from types import MappingProxyType, SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
+from safenav.errors import InvalidConfig
+from safenav.pointcloud import scan_from_cloud
 from safenav.scan import LaserScan
 
 if TYPE_CHECKING:
     from safenav.ros.params import SourceConfig
 
-__all__ = ["SOURCE_TYPES", "ScanSource", "Source"]
+__all__ = ["SOURCE_TYPES", "PointCloudSource", "ScanSource", "Source"]
 
 
 class Source(abc.ABC):
@@ -41,6 +45,10 @@ class Source(abc.ABC):
 
     message: tuple[str, str]
     """ROS package and message name the source subscribes to, e.g. ``("sensor_msgs", "LaserScan")``."""
+
+    cloud: bool = False
+    """The messages are point clouds: the sensor is described by :attr:`SourceConfig.lidar
+    <safenav.ros.params.SourceConfig.lidar>` (field of view, ranges, height band), not by the message."""
 
     def __init__(self, config: SourceConfig) -> None:
         self.config = config
@@ -67,6 +75,28 @@ class ScanSource(Source):
         return LaserScan.from_msg(_Renamed(msg, self.config.name), mount=self.config.mount)
 
 
+class PointCloudSource(Source):
+    """A ``sensor_msgs/PointCloud2`` topic (a depth camera or a 3D lidar) flattened to a planar scan.
+
+    The points in the source's height band are binned by bearing over its field of view; each
+    beam reads its nearest point (:mod:`safenav.pointcloud`). Like a scan source's, the result's
+    ``frame_id`` is the source's name and its mount the source's.
+    """
+
+    message = ("sensor_msgs", "PointCloud2")
+    cloud = True
+
+    def __init__(self, config: SourceConfig) -> None:
+        super().__init__(config)
+        if config.lidar is None or config.lidar.cloud is None:
+            raise InvalidConfig(f"pointcloud source {config.name!r} needs SourceConfig.lidar with a CloudSlice, "
+                                f"got {config.lidar!r}")
+        self.lidar = config.lidar
+
+    def convert(self, msg: Any) -> LaserScan:
+        return scan_from_cloud(_Renamed(msg, self.config.name), self.lidar)
+
+
 class _Renamed:
     """``msg`` seen with ``header.frame_id`` replaced (its stamp kept), without copying its data."""
 
@@ -79,5 +109,5 @@ class _Renamed:
         return getattr(self._msg, name)
 
 
-SOURCE_TYPES: Mapping[str, type[Source]] = MappingProxyType({"scan": ScanSource})
+SOURCE_TYPES: Mapping[str, type[Source]] = MappingProxyType({"scan": ScanSource, "pointcloud": PointCloudSource})
 """Source classes by the ``<source>.type`` parameter."""

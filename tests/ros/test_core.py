@@ -18,9 +18,12 @@ from safenav import SafeNavError, preset
 from safenav.errors import InvalidConfig, UnknownName
 from safenav.ros import PARAMETERS, NodeConfig, SafetyCore
 from safenav.synthetic import Scene, synthetic_scan, wall
+from tests.ros.clouds import BAND, CLOUD_MOUNT, cloud_fields, cloud_parameters, wall_points
 
 ROOT = Path(__file__).resolve().parents[2]
 ROSBOT = preset("rosbot")
+#: A depth camera as the only source ``cloud``.
+CAMERA = {"sources": ["cloud"], **cloud_parameters("cloud", full_turn=False)}
 
 
 def test_defaults_protect_the_rosbot_with_the_cbf_and_its_lidar_mount():
@@ -49,7 +52,24 @@ BAD_PARAMETERS = [
     ({"robot": "turtlebot"}, UnknownName, "unknown robot preset 'turtlebot'; expected one of: m2wr, puzzlebot, rosbot"),
     ({"scan_timout": 1.0}, UnknownName, "unknown parameter 'scan_timout'; expected one of: "),
     ({"cbf.gama": 0.1}, UnknownName, "unknown cbf setting 'gama'; expected one of: "),
-    ({"scan.type": "pointcloud"}, UnknownName, "unknown source type 'pointcloud'; expected one of: scan"),
+    ({"scan.type": "sonar"}, UnknownName, "unknown source type 'sonar'; expected one of: pointcloud, scan"),
+    ({"scan.z_min": 0.1}, InvalidConfig, "parameter scan.z_min applies to pointcloud sources only; "
+                                         "source 'scan' is of type scan"),
+    ({"scan.type": "pointcloud", "scan.z_min": -0.1, "scan.z_max": 0.3}, InvalidConfig,
+     "pointcloud source 'scan' needs parameters scan.mount, scan.angle_min, scan.angle_max: the sensor's mount, "
+     "height band and field of view have no default"),
+    ({**CAMERA, "cloud.z_max": -0.2}, InvalidConfig, "parameter cloud.z_max must be a finite number > -0.15, got -0.2"),
+    ({**CAMERA, "cloud.angle_max": -1.0}, InvalidConfig, "parameter cloud.angle_max must be a finite number > -0.75 "
+                                                         "and <= 5.53319, got -1.0"),
+    ({**CAMERA, "cloud.angle_increment": 0.0}, InvalidConfig, "parameter cloud.angle_increment must be a finite "
+                                                              "number > 0 and <= 1.5, got 0.0"),
+    ({**CAMERA, "cloud.range_max": 0.0}, InvalidConfig, "parameter cloud.range_max must be a finite number > 0, "
+                                                        "got 0.0"),
+    ({**CAMERA, "cloud.empty": "free"}, UnknownName, "unknown cloud.empty reading 'free'; expected one of: invalid, "
+                                                     "no_return"),
+    ({**CAMERA, "cloud.axes": "camera"}, UnknownName, "unknown cloud.axes convention 'camera'; expected one of: "
+                                                      "optical, rep103"),
+    ({**CAMERA, "cloud.mount": [0.1, 0.0]}, InvalidConfig, "cloud.mount must be [x, y, yaw] in [m, m, rad]"),
     ({"control_period": 50}, InvalidConfig, "control_period must be a duration in seconds in (0, 1], got 50"),
     ({"scan.timeout": -1.0}, InvalidConfig, "scan.timeout must be a finite number > 0, got -1.0"),
     ({"scan.mount": [0.0, 0.0]}, InvalidConfig, "scan.mount must be [x, y, yaw] in [m, m, rad], got [0.0, 0.0]"),
@@ -267,3 +287,96 @@ def test_a_driver_layout_is_learned_from_the_first_message_and_a_later_change_is
     core.on_scan("scan", scan_message(None), 0.05)      # now 720 beams: the driver changed under the node
     state = core.tick(0.05, out)
     assert state.status == "bad_message" and "720" in state.reason and out.commands[-1] == (0.0, 0.0)
+
+
+# ============================================================================ point-cloud sources
+
+
+def cloud_message(distance: float | None, **changes) -> SimpleNamespace:
+    """A ``PointCloud2``'s fields (see ``clouds.py``): a wall ``distance`` ahead of the base, and the floor."""
+    fields = {**cloud_fields(wall_points(distance)), **changes}
+    header = SimpleNamespace(frame_id=fields.pop("frame_id"), stamp=SimpleNamespace(sec=0, nanosec=0))
+    points = [SimpleNamespace(name=name, offset=offset, datatype=datatype, count=count)
+              for name, offset, datatype, count in fields.pop("fields")]
+    return SimpleNamespace(header=header, fields=points, **fields)
+
+
+def test_a_pointcloud_source_is_a_lidar_of_its_field_of_view_band_and_mount():
+    config = NodeConfig.from_parameters({"sources": ["scan", "cloud"], **cloud_parameters("cloud", full_turn=False),
+                                         "cloud.axes": "optical", "cloud.range_min": 0.2})
+    scan, cloud = config.sources
+    assert (scan.type, scan.lidar) == ("scan", None)
+    lidar = cloud.lidar
+    assert (cloud.type, cloud.topic, tuple(cloud.mount)) == ("pointcloud", "cloud", CLOUD_MOUNT)
+    assert (lidar.frame_id, tuple(lidar.mount), lidar.range_min, lidar.range_max) == ("cloud", CLOUD_MOUNT, 0.2, 8.0)
+    assert (lidar.cloud.z_min, lidar.cloud.z_max, lidar.cloud.empty, lidar.cloud.axes) == (*BAND, "invalid", "optical")
+    # Half-degree bins from -0.75 rad, the last one inside the field of view.
+    assert lidar.angle_min == -0.75 and lidar.angle_increment == pytest.approx(math.pi / 360)
+    assert lidar.n_beams == 172 and 0.75 - lidar.angle_increment < lidar.angle_max <= 0.75
+    # A full turn -pi..pi holds each direction once (pi is -pi's bin).
+    turn = NodeConfig.from_parameters({"sources": ["cloud"], **cloud_parameters("cloud", full_turn=False),
+                                       "cloud.angle_min": -math.pi, "cloud.angle_max": math.pi}).sources[0].lidar
+    assert turn.n_beams == 720 and turn.angle_max == pytest.approx(math.pi - math.pi / 360)
+    # The node's robot knows the cloud's lidar from the start, next to the preset's for the scan.
+    core, _, _ = make_core(sources=["scan", "cloud"], **cloud_parameters("cloud", full_turn=False))
+    assert [known.frame_id for known in core.robot.lidars] == ["scan", "cloud"]
+    assert core.robot.lidars[1] == NodeConfig.from_parameters(
+        {"sources": ["scan", "cloud"], **cloud_parameters("cloud", full_turn=False)}).sources[1].lidar
+
+
+def _drive(core, out, clouds, scan=None, steps: int = 5):
+    """``steps`` control periods of the cloud (and the scan) and a forward command, after the last tick."""
+    start = 0.0 if core.state.time == 0.0 else core.state.time + 0.05
+    state = None
+    for k in range(steps):
+        now = start + 0.05 * k
+        if scan is not None:
+            core.on_scan("scan", scan, now)
+        core.on_scan("cloud", clouds, now)
+        core.on_command(twist(0.5, 0.0), now)
+        state = core.tick(now, out)
+    return state
+
+
+def test_a_cloud_of_a_wall_ahead_brakes_and_the_floor_below_the_band_does_not():
+    lidar_3d = {"sources": ["cloud"], **cloud_parameters("cloud", full_turn=True)}
+    core, out, _ = make_core(**lidar_3d)
+    state = _drive(core, out, cloud_message(None))
+    assert (state.status, state.intervened) == ("ok", False) and out.commands[-1] == (0.5, 0.0)
+    state = _drive(core, out, cloud_message(0.4))
+    assert state.status == "ok" and state.intervened and state.binding == "barrier"
+    assert 0.0 <= out.commands[-1][0] < 0.3 and out.commands[-1][1] == pytest.approx(0.0, abs=1e-9)
+    assert 0.0 < state.clearance <= 0.4 - ROSBOT.radius + 1e-6      # the wall, through the cloud's mount
+    # A band that takes in the floor (0.25 m below the sensor) sees it as obstacles 0.2 m ahead.
+    floor_too, out, _ = make_core(**{**lidar_3d, "cloud.z_min": -0.3})
+    state = _drive(floor_too, out, cloud_message(None))
+    assert state.intervened and out.commands[-1][0] < 0.5
+
+
+def test_a_scan_and_a_cloud_are_merged_and_a_wall_only_the_cloud_sees_brakes():
+    core, out, _ = make_core(sources=["scan", "cloud"], **cloud_parameters("cloud", full_turn=False))
+    state = _drive(core, out, cloud_message(None), scan=scan_message(None))
+    assert (state.status, state.intervened) == ("ok", False)     # the camera's empty bins: the scan sees them free
+    state = _drive(core, out, cloud_message(0.4), scan=scan_message(None))
+    assert state.status == "ok" and state.intervened and 0.0 <= out.commands[-1][0] < 0.3
+    later = core.state.time + 0.6                  # a fresh scan and command, the cloud older than its 0.5 s timeout
+    core.on_scan("scan", scan_message(None), later)
+    core.on_command(twist(0.5, 0.0), later)
+    state = core.tick(later, out)
+    assert state.status == "stale" and "source 'cloud'" in state.reason
+
+
+def test_a_malformed_cloud_brakes_names_the_field_and_the_next_good_one_recovers():
+    core, out, warnings = make_core(sources=["scan", "cloud"], **cloud_parameters("cloud", full_turn=False))
+    good = cloud_message(0.4)
+    malformed = cloud_message(0.4, row_step=good.row_step + 12)
+    for k, clouds in enumerate((good, malformed, malformed, good, good)):
+        core.on_scan("scan", scan_message(None), 0.05 * k)
+        core.on_scan("cloud", clouds, 0.05 * k)
+        core.on_command(twist(0.5, 0.0), 0.05 * k)
+        core.tick(0.05 * k, out)
+        if clouds is malformed:
+            assert core.state.status == "bad_message" and "PointCloud2.data has" in core.state.reason
+    assert out.commands[1] == (0.0, 0.0) and len(out.commands) == 4      # zero once, then silent
+    assert core.state.status == "ok" and 0.0 < out.commands[-1][0] < 0.3      # (the first after is late)
+    assert len([w for w in warnings if "malformed message" in w]) == 1

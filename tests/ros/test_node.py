@@ -1,7 +1,7 @@
-"""The safety node over real middleware: braking, stale scans, ~/enable, malformed scans.
+"""The safety node over real middleware: braking, stale scans, ~/enable, malformed scans, point clouds.
 
-The probe (``probe.py``, its own process) publishes scans of the ROSbot's lidar and a forward
-command at 20 Hz and records the node's ``cmd_vel`` and ``~/state``.
+The probe (``probe.py``, its own process) publishes scans of the ROSbot's lidar (and point
+clouds) and a forward command at 20 Hz and records the nodes' ``cmd_vel`` and ``~/state``.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.ros.clouds import cloud_parameters
 from tests.ros.graph import MIDDLEWARES
 
 CONTROL_PERIOD = 0.05
@@ -92,3 +93,53 @@ def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graph
     said = [line for line in graph.log("misspelt").splitlines() if line.startswith(f"safenav-{middleware}: ")]
     assert len(said) == 1 and said[0].startswith(f"safenav-{middleware}: unknown parameter 'scan_timout'; "
                                                  f"expected one of: "), graph.log("misspelt")
+
+
+@pytest.mark.parametrize("middleware", MIDDLEWARES)
+def test_point_cloud_sources_brake_for_a_wall_only_the_cloud_sees_and_survive_a_malformed_cloud(
+        graphs, middleware: str, tmp_path: Path) -> None:
+    """Two nodes on one ``cloud`` topic: a LaserScan plus a depth-camera cloud, and a 3D-lidar cloud alone."""
+    graph = graphs(middleware)
+    common = {"robot": "rosbot", "filter": "cbf", "odom_topic": "", "cmd_vel_timeout": 5.0,
+              "control_period": CONTROL_PERIOD}
+    nodes = {"node": graph.spawn("node", params={**common, "sources": ["scan", "cloud"],
+                                                 **cloud_parameters("cloud", full_turn=False)}),
+             "cloud_only": graph.spawn("cloud_only", node_name="cloud_only", params={
+                 **common, "sources": ["cloud"], "cmd_vel_out_topic": "cmd_vel_cloud_only",
+                 **cloud_parameters("cloud", full_turn=True)})}
+    out = tmp_path / "probe.json"
+    probe = graph.run("probe", [sys.executable, "tests/ros/probe.py", middleware, str(out), "cloud"])
+    assert probe.wait(timeout=120) == 0, graph.log("probe") + graph.log("node") + graph.log("cloud_only")
+    phases = json.loads(out.read_text())
+
+    for label, process in nodes.items():
+        context = graph.log(label)
+        seen = {name: phases[name] if label == "node" else {"begin": phases[name]["begin"], **phases[name][label]}
+                for name in ("discovery", "free", "wall", "malformed", "recovered")}
+        assert "ok" in _statuses(seen["discovery"]), context
+
+        # Free space (floor points under the band, nothing in it): the nominal passes bit for bit.
+        free = _outputs_after(seen["free"], SETTLE)
+        assert len(free) >= 10 and all(o[1:] == [0.5, 0.0] for o in free), (label, free, context)
+
+        # A wall 0.4 m ahead in the cloud only (the scan stays free): the forward command is slowed.
+        wall = _outputs_after(seen["wall"], SETTLE)
+        assert wall and all(0.0 <= o[1] <= 0.3 for o in wall), (label, wall)
+        settled = [s for s in seen["wall"]["states"] if s["t"] >= seen["wall"]["begin"] + SETTLE]
+        assert settled and all(s["intervened"] for s in settled), (label, settled[-3:])
+        assert "ok" in _statuses(seen["wall"])     # (a tick a little late on a loaded machine says "late")
+        assert all(s["binding"] == "barrier" for s in settled if s["status"] == "ok"), (label, settled[-3:])
+
+        # A malformed cloud brakes (zero once, then silence) and names the field; the node lives on.
+        bad = [s for s in seen["malformed"]["states"] if s["status"] == "bad_message"]
+        assert bad and "PointCloud2.data" in bad[-1]["reason"], (label, seen["malformed"]["states"][-3:])
+        assert [0.0, 0.0] in [o[1:] for o in seen["malformed"]["outputs"]], (label, seen["malformed"]["outputs"])
+        assert all(o[1:] == [0.0, 0.0] for o in _outputs_after(seen["malformed"], SETTLE))
+        recovered = _outputs_after(seen["recovered"], SETTLE)
+        assert "ok" in _statuses(seen["recovered"])
+        assert recovered and all(0.0 < o[1] <= 0.3 for o in recovered), (label, recovered)
+        assert process.poll() is None, context
+        # Logged once (lines of the node's own logger; rospy may echo them through its rosout logger too).
+        warned = [line for line in context.splitlines()
+                  if line.startswith("[WARN]") and "braking: source 'cloud': malformed message" in line]
+        assert len(warned) == 1, context
