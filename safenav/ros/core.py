@@ -26,6 +26,10 @@ velocity (zero without odometry). A zero command is published once and then the 
 silent until the command changes (the collision monitor's ``stop_pub_timeout``), so a
 velocity multiplexer behind it can hand over. The node never raises from a callback: a bad
 message brakes, is logged once per cause, and is reported in the state.
+
+One module on purpose: the inputs, the precedence table above and the state they produce are one
+contract that both transports call; split, each half would need the other's private bookkeeping
+(latest messages, the causes logged, the last command published).
 """
 
 from __future__ import annotations
