@@ -17,8 +17,13 @@ Run ``python -m benchmarks.braking --help`` (or ``safenav bench braking``).
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):  # run as `python benchmarks/braking.py`: import this checkout
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.common import markdown_table, write_json
 from safenav.episode import EpisodeConfig, run_episode

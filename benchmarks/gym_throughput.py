@@ -31,9 +31,11 @@ if __package__ in (None, ""):  # run as `python benchmarks/gym_throughput.py`: i
 import numpy as np
 
 from benchmarks.common import markdown_table, write_json
+from safenav._checks import argument_type, integer
 from safenav._optional import require
-from safenav.cli import positive_int
 from safenav.robot import PRESET_NAMES
+
+positive_int = argument_type(integer, low=1)
 
 
 def _maker(env_id: str, robot: str | None, shielded: bool, info_scan: bool) -> Any:

@@ -43,9 +43,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from benchmarks.common import markdown_table, write_json
+from safenav._checks import argument_type, integer
 from safenav._optional import require
-from safenav.cli import positive_int
 from safenav.robot import PRESET_NAMES
+
+positive_int = argument_type(integer, low=1)
 
 ENV_ID = "safenav/GoToGoal-v0"
 EVAL_SEED = 100_000

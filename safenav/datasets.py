@@ -35,6 +35,9 @@ map the codes by what the sensor's protocol says they mean:
 :func:`resample` puts any scan onto another lidar's beam layout (for example the
 ROSbot's backwards-mounted 360-degree lidar) by base-frame direction, so real
 180- and 240-degree scans can drive robots with other conventions.
+
+Longer than most modules because each of the six recordings has its own file format and loader; they
+share only the small :class:`RecordedScan` type, which is why they sit together.
 """
 
 from __future__ import annotations

@@ -23,6 +23,9 @@ filters' guarantee. A robot that is not a preset is described with a
 
 Commands are ``(v, omega)``: linear velocity along base x [m/s] and yaw rate
 [rad/s], as ``geometry_msgs/Twist`` ``linear.x`` and ``angular.z``.
+
+One module for the robot description: the spec, its limits and the three presets with their sources
+are read together, and the presets' numbers are documented next to them.
 """
 
 from __future__ import annotations

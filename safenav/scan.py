@@ -54,6 +54,10 @@ that, such as simulation time, must be converted by the caller); ROS 2 / ``rosba
 ``builtin_interfaces`` times (``sec``, ``nanosec``); ROS 1 times (``secs``, ``nsecs``);
 rclpy ``Time`` (``nanoseconds``); anything with ``to_sec()``. Anything else raises
 :class:`~safenav.errors.InvalidScanType` naming its type.
+
+One module for the scan model on purpose: the REP-117 reading classes, the mount, the ROS message
+conversions (ROS 1, ROS 2, rosbags, stamps) and the geometric queries all act on the same few
+arrays, and splitting them would scatter one data type over several files.
 """
 
 from __future__ import annotations

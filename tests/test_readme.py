@@ -1,5 +1,6 @@
 """The README's set-up commands are the ones CI runs."""
 
+import math
 import re
 from pathlib import Path
 
@@ -33,22 +34,47 @@ def python_examples() -> list[str]:
     return re.findall(r"```python\n(.*?)```", readme, flags=re.S)
 
 
+def python_example(containing: str) -> str:
+    """The README's one Python example that contains ``containing``."""
+    (example,) = [code for code in python_examples() if containing in code]
+    return example
+
+
 def test_readme_filter_example_runs_on_a_ros_like_message():
     import math
     from types import SimpleNamespace
 
     namespace: dict = {}
-    exec(python_examples()[0], namespace)
-    message = SimpleNamespace(angle_min=-math.pi, angle_max=math.pi, angle_increment=2 * math.pi / 719,
+    exec(python_example("def control_step"), namespace)
+    header = SimpleNamespace(stamp=SimpleNamespace(sec=100, nanosec=0), frame_id="laser")
+    message = SimpleNamespace(header=header, angle_min=-math.pi, angle_max=math.pi, angle_increment=2 * math.pi / 719,
                               time_increment=0.0, scan_time=0.1, range_min=0.15, range_max=12.0,
                               ranges=[0.5] * 720, intensities=[])
-    u = namespace["on_scan"](message, (0.3, 0.0), (1.0, 0.0))
+    u = namespace["control_step"](message, (0.3, 0.0), (1.0, 0.0), 100.02)
     assert 0.0 <= u[0] < 1.0          # a wall 0.5 m all round: the filter slows the robot down
+    u = namespace["control_step"](message, (0.3, 0.0), (1.0, 0.0), 101.0)
+    assert u[0] < 0.3                 # the same scan a second later is stale: the filter brakes
+
+
+def test_readme_own_robot_example_builds_a_polygon_filter_for_its_lidar():
+    namespace: dict = {}
+    exec(python_example("RobotSpec(name="), namespace)
+    safety, lidar = namespace["safety"], namespace["lidar"]
+    assert safety.robot.lidar == lidar and safety.config.body == "polygon"
+    assert safety.robot.radius >= max(math.hypot(x, y) for x, y in safety.robot.footprint)
+
+
+@pytest.mark.sim
+def test_readme_gymnasium_example_runs_and_says_what_the_shield_did(capsys):
+    pytest.importorskip("gymnasium", reason="the gym extra is not installed")
+    exec(python_example("SafetyShield("), {})
+    status = capsys.readouterr().out.split()[0]
+    assert status in {"ok", "recovering", "slack", "braking"}
 
 
 @pytest.mark.sim
 def test_readme_shield_example_runs_without_collision(capsys):
-    exec(python_examples()[1], {})
+    exec(python_example("BulletSim"), {})
     assert "collided: False" in capsys.readouterr().out
 
 

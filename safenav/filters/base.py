@@ -14,6 +14,10 @@ period and scan ages, the odometry that carries remembered points, the perceptio
 (:mod:`safenav.filters.perception`), then the filter's own :meth:`SafetyFilter._filter`,
 then the bookkeeping. Subclasses implement ``_filter`` and may use the hooks
 :meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; none overrides ``filter``.
+
+Longer than most modules because the call template owns every check a filter must make before and
+after its step (input, clock, staleness, late calls, base lag, deadlock, braking), so that no filter
+can skip one; the statuses and the result sit here with it.
 """
 
 from __future__ import annotations

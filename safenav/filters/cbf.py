@@ -1,4 +1,9 @@
-"""Control-barrier-function QP safety filter built from lidar points."""
+"""Control-barrier-function QP safety filter built from lidar points.
+
+Longer than most modules because the class docstring states the whole guarantee, row family by row
+family, next to the code that enforces it; the families themselves live in
+:mod:`safenav.filters.rows`, the QP back-ends in :mod:`safenav.filters.qp`.
+"""
 
 from __future__ import annotations
 

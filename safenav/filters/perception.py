@@ -20,6 +20,9 @@ Shared by every filter, so the CBF and the MPC see the same world:
   frame by odometry and stay obstacles while the body can reach them and no current beam
   contradicts them (not for a fixed time).
 * :func:`nearest_per_bin`: a working set, the point with the smallest key per angular bin.
+
+It holds the three perception steps together because the unknown region and the memory both work on
+the obstacle points the first step produces.
 """
 
 from __future__ import annotations

@@ -19,6 +19,9 @@ uncertainty; ``n_j(o) = (p_j - o) / ||p_j - o||``. The base-frame velocity of ``
 command ``(v, omega)`` is ``J_j (v, omega)`` with ``J_j = [[1, -p_y], [0, p_x]]``, so the
 rate at which ``p_j`` approaches ``o`` is ``a_j(o) . (v, omega)`` with
 ``a_j(o) = -J_j^T n_j(o)``. All rows are divided by the period (units of m/s).
+
+Longer than most modules because each family carries its invariant and its proof sketch in its
+docstring (that is what the tests check); the code of each family is short.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The simulator's benchmarks run both as ``python -m benchmarks.NAME`` and ``python benchmarks/NAME.py``.
 
-(``collision_rates``, ``robustness``, ``sim_speed`` and ``soak``; the filters', the ROS bridge's and the
-Gymnasium benchmarks have their own tests.)
+(``collision_rates``, ``robustness``, ``sim_speed`` and ``soak`` on a tiny run; every other benchmark,
+the filters', the ROS node's and the Gymnasium ones, answers ``--help`` in both forms.)
 
 Each runs a tiny configuration and writes its JSON; the script form runs from another folder, so it
 must find this checkout by itself (not the installed safenav, not the current directory).
@@ -50,3 +50,19 @@ def test_benchmark_runs_in_both_forms(name, form, tmp_path):
     assert EXPECTED_KEYS[name] in json.loads(out.read_text())
     assert "Traceback" not in result.stderr and "Warning" not in result.stderr + result.stdout
     assert "pybullet build time" not in result.stderr + result.stdout
+
+
+HELP_ONLY = sorted({path.stem for path in (ROOT / "benchmarks").glob("*.py")} - set(TINY) - {"__init__", "common"})
+"""The other benchmarks (the filters', the ROS node's, the Gymnasium ones): their ``--help`` in both forms."""
+
+
+@pytest.mark.parametrize("form", ["module", "script"])
+@pytest.mark.parametrize("name", HELP_ONLY)
+def test_every_other_benchmark_answers_help_in_both_forms(name, form, tmp_path):
+    if form == "module":
+        command, cwd = [sys.executable, "-m", f"benchmarks.{name}"], ROOT
+    else:
+        command, cwd = [sys.executable, str(ROOT / "benchmarks" / f"{name}.py")], tmp_path
+    result = subprocess.run([*command, "--help"], cwd=cwd, capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith(f"usage: {name}"), result.stdout[:200]

@@ -1,4 +1,9 @@
-"""Predictive (MPC) safety filter: a plan over a horizon in seconds that is safe all the way to a stop."""
+"""Predictive (MPC) safety filter: a plan over a horizon in seconds that is safe all the way to a stop.
+
+Longer than most modules because the filter's docstring states its guarantee in full and the call
+owns the plan's life cycle (fast path, solve, verification, repair, deadline, late-call blocks); the
+NLP, the SQP, the plan layout and the configuration are the package's other modules.
+"""
 
 from __future__ import annotations
 
