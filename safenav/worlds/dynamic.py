@@ -41,7 +41,7 @@ from safenav.worlds.shapes import Box, Cylinder
 from safenav.worlds.world import World
 
 __all__ = ["ENCOUNTERS", "DynamicWorld", "MovingObstacle", "crossing", "head_on", "overtaking", "pass_beside",
-           "random_movers", "step_in"]
+           "patrols", "random_movers", "step_in"]
 
 _FAR_FUTURE = 3600.0
 """End of the path of a constant-velocity mover that never disappears [s after it appears]."""
@@ -299,3 +299,72 @@ def random_movers(seed: int, count: int, *, start: Pose2D, speed: tuple[float, f
             movers.append(overtaking(start, distance=how_far, speed=walker_speed, radius=radius, lateral=side,
                                      appear=when))
     return tuple(movers)
+
+
+def patrols(seed: int, count: int, *, bounds: tuple[float, float, float, float], speed: float,
+            duration: float, radius: float = 0.2, keep_clear: tuple[float, float, float] | None = None,
+            ) -> tuple[MovingObstacle, ...]:
+    """Seeded walkers that pace back and forth between two random points of ``bounds``, all at ``speed``.
+
+    The traffic of an arena rather than of one encounter: each walker turns at its two points
+    (drawn uniformly inside ``bounds`` shrunk by ``radius``, at least 1 m apart) and starts at a
+    random point of its beat, so the density stays the same over the episode. The walkers pass
+    through the static obstacles (they are ghosts to them, not to the robot). Drawn from a child
+    of the ``world`` stream of ``seed`` (another child than :func:`random_movers`'), so the static
+    world drawn from the same seed is not disturbed and the same arguments give the same walkers.
+
+    Args:
+        seed: the episode's seed.
+        count: how many walkers.
+        bounds: ``(xmin, ymin, xmax, ymax)`` of the region they walk in [m].
+        speed: their speed [m/s].
+        duration: how long their beats are written out [s] (they stand still afterwards).
+        radius: their radius [m].
+        keep_clear: ``(x, y, distance)``: at time 0 no walker is within ``distance`` of ``(x, y)``
+            [m] (the robot's start); drawn again until none is.
+    """
+    count = integer("patrols count", count, low=0)
+    speed, duration, radius = (positive(f"patrols {name}", value) for name, value in
+                               (("speed", speed), ("duration", duration), ("radius", radius)))
+    xmin, ymin, xmax, ymax = vector("patrols bounds", bounds, 4, expected="(xmin, ymin, xmax, ymax) [m]")
+    low, high = np.array([xmin + radius, ymin + radius]), np.array([xmax - radius, ymax - radius])
+    if np.any(high - low < 1.0):
+        raise InvalidConfig(f"patrols bounds {bounds!r} leave less than 1 m to walk in once shrunk by the "
+                            f"radius {radius!r}; expected a larger region")
+    rng = np.random.default_rng(stream(seed, "world").spawn(3)[2])
+    walkers = []
+    for _ in range(count):
+        for _attempt in range(1000):
+            a, b = rng.uniform(low, high), rng.uniform(low, high)
+            beat = float(np.hypot(*(b - a)))
+            phase = float(rng.uniform(0.0, 2.0 * beat)) if beat >= 1.0 else 0.0
+            if beat < 1.0:
+                continue
+            first = a + (b - a) * min(phase, 2 * beat - phase) / beat
+            if keep_clear is None or math.hypot(first[0] - keep_clear[0], first[1] - keep_clear[1]) \
+                    >= keep_clear[2] + radius:
+                break
+        else:
+            raise InvalidConfig(f"patrols could not keep {keep_clear!r} clear in {bounds!r}")
+        walkers.append(MovingObstacle(Cylinder((0.0, 0.0), radius), _beat(a, b, phase, beat, speed, duration)))
+    return tuple(walkers)
+
+
+def _beat(a: np.ndarray, b: np.ndarray, phase: float, beat: float, speed: float,
+          duration: float) -> tuple[tuple[float, float, float], ...]:
+    """Waypoints of a walk back and forth between ``a`` and ``b``, ``phase`` [m] along the round trip at time 0."""
+    leg = beat / speed
+    # position at time 0, and the first turn ahead
+    if phase < beat:
+        here, targets, first_leg = a + (b - a) * phase / beat, [b, a], (beat - phase) / speed
+    else:
+        here, targets, first_leg = b + (a - b) * (phase - beat) / beat, [a, b], (2 * beat - phase) / speed
+    waypoints = [(0.0, float(here[0]), float(here[1]))]
+    moment, turn = first_leg, 0
+    while True:
+        point = targets[turn % 2]
+        waypoints.append((moment, float(point[0]), float(point[1])))
+        if moment >= duration:
+            return tuple(waypoints)
+        moment += leg
+        turn += 1

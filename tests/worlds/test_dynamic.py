@@ -17,6 +17,7 @@ from safenav.worlds.dynamic import (
     head_on,
     overtaking,
     pass_beside,
+    patrols,
     random_movers,
     step_in,
 )
@@ -174,3 +175,24 @@ def test_same_seed_same_episode_in_a_dynamic_world():
 def test_bad_input_is_a_clear_error(call, error, message):
     with pytest.raises(error, match=message.replace("[", r"\[").replace("]", r"\]")):
         call()
+
+
+# ---------------------------------------------------------------------------------------------- patrols
+
+
+def test_patrols_pace_between_two_points_at_the_speed_and_keep_the_start_clear():
+    walkers = patrols(4, 5, bounds=(-3.0, -3.0, 3.0, 3.0), speed=0.8, duration=30.0, radius=0.2,
+                      keep_clear=(0.0, 0.0, 1.0))
+    assert walkers == patrols(4, 5, bounds=(-3.0, -3.0, 3.0, 3.0), speed=0.8, duration=30.0, radius=0.2,
+                              keep_clear=(0.0, 0.0, 1.0))
+    for walker in walkers:
+        table = np.array(walker.waypoints)
+        speeds = np.hypot(*np.diff(table[:, 1:], axis=0).T) / np.diff(table[:, 0])
+        np.testing.assert_allclose(speeds, 0.8)
+        assert table[-1, 0] >= 30.0
+        assert np.all(np.abs(table[:, 1:]) <= 3.0 - 0.2 + 1e-9)
+        # back and forth: every other turning point is the same
+        np.testing.assert_allclose(table[1::2][:, 1:], np.repeat(table[1:2, 1:], len(table[1::2]), axis=0))
+        assert math.hypot(*walker.position(0.0)) >= 1.0 + 0.2
+    with pytest.raises(InvalidConfig, match="less than 1 m"):
+        patrols(0, 1, bounds=(0.0, 0.0, 1.0, 1.0), speed=1.0, duration=5.0)
