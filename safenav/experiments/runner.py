@@ -19,6 +19,7 @@ applied to :func:`run_spec`.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import math
 import os
@@ -31,7 +32,7 @@ from typing import IO, Any, TypeVar
 
 import numpy as np
 
-from safenav._checks import choice, integer
+from safenav._checks import argument_type, choice, integer
 from safenav._optional import require
 from safenav.episode import EpisodeConfig, EpisodeMetrics, Trajectory, run_episode
 from safenav.errors import InvalidConfig
@@ -41,7 +42,7 @@ from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
-__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "run_jobs", "run_spec", "run_specs"]
+__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_backend_options", "run_jobs", "run_spec", "run_specs"]
 
 BACKENDS = ("process", "ray")
 """Where :func:`run_jobs` runs: a local process pool (the default), or Ray tasks (the ``distributed`` extra)."""
@@ -152,6 +153,16 @@ def _is_terminal(stream: IO[str]) -> bool:
         return stream.isatty()
     except (AttributeError, ValueError):   # no isatty, or closed
         return False
+
+
+def add_backend_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--workers``, ``--backend`` and ``--address`` to a sweep's command line (see :func:`run_jobs`)."""
+    parser.add_argument("--workers", type=argument_type(integer, low=1), default=None,
+                        help="processes, or the CPUs of a local Ray (default: one per core)")
+    parser.add_argument("--backend", choices=BACKENDS, default="process",
+                        help="where the episodes run (default: process; ray needs safenav[distributed])")
+    parser.add_argument("--address", default=None,
+                        help="with --backend ray: the cluster to join (auto, ray://HOST:10001); default: a local Ray")
 
 
 def run_specs(specs: Sequence[EpisodeSpec], workers: int | None = None, *, progress: bool = True,
