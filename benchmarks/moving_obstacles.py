@@ -36,7 +36,7 @@ from benchmarks.common import markdown_table, names, numbers, run_cli, write_jso
 from safenav._checks import argument_type, choice, integer, number, positive, writable_file
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments import wilson_interval
-from safenav.experiments.runner import add_backend_options, run_jobs
+from safenav.experiments.runner import add_sweep_options, run_jobs
 from safenav.filters import FILTER_NAMES, default_margin, make_filter
 from safenav.robot import PRESET_NAMES
 from safenav.scenarios import scenario
@@ -157,8 +157,7 @@ def build_parser(prog: str = "moving_obstacles") -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=argument_type(positive), default=20.0,
                         help="episode length [s] (default: 20)")
     parser.add_argument("--quick", action="store_true", help="rosbot, cbf, speeds 0.5 and 1.5, 4 walkers, 2 seeds")
-    add_backend_options(parser)
-    parser.add_argument("--no-progress", action="store_true", help="no progress")
+    add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser
 

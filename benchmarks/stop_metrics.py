@@ -54,7 +54,7 @@ if __package__ in (None, ""):   # python benchmarks/stop_metrics.py: import from
 from benchmarks.common import markdown_table, names, run_cli, write_json
 from safenav._checks import argument_type, choice, integer, number, positive, writable_file
 from safenav.episode import EpisodeConfig, run_episode
-from safenav.experiments.runner import add_backend_options, run_jobs
+from safenav.experiments.runner import add_sweep_options, run_jobs
 from safenav.filters import FILTER_NAMES, make_filter
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
@@ -344,8 +344,7 @@ def build_parser(prog: str = "stop_metrics") -> argparse.ArgumentParser:
     parser.add_argument("--stay", type=argument_type(positive), default=5.0,
                         help="step-in: how long the walker stands in the path [s] (default: 5, as in Nav2's bag)")
     parser.add_argument("--quick", action="store_true", help="one seed")
-    add_backend_options(parser)
-    parser.add_argument("--no-progress", action="store_true", help="no progress")
+    add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser
 

@@ -42,7 +42,7 @@ from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
-__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_backend_options", "run_jobs", "run_spec", "run_specs"]
+__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_sweep_options", "run_jobs", "run_spec", "run_specs"]
 
 BACKENDS = ("process", "ray")
 """Where :func:`run_jobs` runs: a local process pool (the default), or Ray tasks (the ``distributed`` extra)."""
@@ -155,14 +155,19 @@ def _is_terminal(stream: IO[str]) -> bool:
         return False
 
 
-def add_backend_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--workers``, ``--backend`` and ``--address`` to a sweep's command line (see :func:`run_jobs`)."""
+def add_sweep_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--workers``, ``--backend``, ``--address`` and ``--no-progress`` to a sweep's command line.
+
+    Pass them on as ``run_jobs(..., args.workers, progress=not args.no_progress, backend=args.backend,
+    address=args.address)`` (:func:`run_jobs`, :func:`run_specs`).
+    """
     parser.add_argument("--workers", type=argument_type(integer, low=1), default=None,
                         help="processes, or the CPUs of a local Ray (default: one per core)")
     parser.add_argument("--backend", choices=BACKENDS, default="process",
                         help="where the episodes run (default: process; ray needs safenav[distributed])")
     parser.add_argument("--address", default=None,
                         help="with --backend ray: the cluster to join (auto, ray://HOST:10001); default: a local Ray")
+    parser.add_argument("--no-progress", action="store_true", help="no progress")
 
 
 def run_specs(specs: Sequence[EpisodeSpec], workers: int | None = None, *, progress: bool = True,
