@@ -88,7 +88,7 @@ def run_job(job: MovingJob) -> dict[str, Any]:
     robot = task.robot
     world = world_for(job)
     config = EpisodeConfig(duration=job.duration)
-    options = {} if job.filter == "none" else {"margin": default_margin(robot) + job.extra_margin}
+    options = {"margin": default_margin(robot) + job.extra_margin} if job.extra_margin else {}
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **options)
     policy = task.policy("random_walk", world, job.seed)
     started = time.perf_counter()
@@ -178,6 +178,10 @@ def _run(args: argparse.Namespace) -> int:
         args.robots, args.filters, args.speeds, args.counts, args.seeds = ["rosbot"], ["cbf"], [0.5, 1.5], [4], 2
     robots = [choice("robot", name, PRESET_NAMES) for name in args.robots]
     filters = [choice("filter", name, FILTER_NAMES) for name in args.filters]
+    if any(args.margins):
+        filters_with_margin = [name for name in FILTER_NAMES if name.split("+")[0] in ("cbf", "mpc")]
+        for name in filters:
+            choice("filter with a margin (--margins)", name, filters_with_margin)
     jobs = [MovingJob(robot, name, speed, int(count), seed, args.duration, extra)
             for robot in robots for name in filters for extra in args.margins for speed in args.speeds
             for count in args.counts for seed in range(args.seeds)]
