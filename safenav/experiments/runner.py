@@ -270,8 +270,9 @@ def _on_ray(function: Callable[[Item], Result], items: Sequence[Item], order: Se
         with _quiet_stderr():
             ray.init(**options)
     try:
-        task = ray.remote(num_cpus=1)(function)
-        pending = {task.remote(items[index]): index for index in order}
+        task = ray.remote(num_cpus=1)(_call)
+        shipped = ray.put(function)   # once, not with every task
+        pending = {task.remote(shipped, items[index]): index for index in order}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)
@@ -284,6 +285,11 @@ def _on_ray(function: Callable[[Item], Result], items: Sequence[Item], order: Se
     finally:
         if started:
             ray.shutdown()
+
+
+def _call(function: Callable[[Item], Result], item: Item) -> Result:
+    """A Ray task: ``function(item)`` (Ray cannot make a task of a built-in or a callable object itself)."""
+    return function(item)
 
 
 @contextlib.contextmanager

@@ -23,6 +23,8 @@ def test_ray_gives_the_process_pools_outcomes():
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         on_ray = run_specs(specs, workers=2, progress=False, backend="ray")
+        # any callable, a built-in included, in the order of the items
+        assert run_jobs(abs, [3, -1, -2], progress=False, backend="ray") == [3, 1, 2]
     finally:
         ray.shutdown()
     assert [outcome.spec for outcome in on_ray] == list(specs)
