@@ -7,6 +7,8 @@ through clutter on each preset, 20 seeds each (``-m slow``); CI runs two seeds o
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from safenav import UnknownName
@@ -94,7 +96,12 @@ def test_filtered_robot_never_collides_and_keeps_its_margin(name, policy, filter
     task = scenario(name)
     robot = task.robot
     world = task.world(seed)
-    safety_filter = make_filter(filter_name, robot, DT)
+    # The MPC without its compute budget: on a loaded machine a call over the budget follows the
+    # last verified plan (status fallback, "deadline"), which makes the episode depend on the
+    # machine's load. The deadline has its own tests (tests/filters/test_mpc_deadline.py, with an
+    # injected clock); the time per call is measured in benchmarks/filter_latency.py.
+    settings = {"budget": math.inf} if filter_name == "mpc" else {}
+    safety_filter = make_filter(filter_name, robot, DT, **settings)
     result = run_episode(world, robot, task.policy(policy, world, seed), safety_filter,
                          config=EpisodeConfig(duration=task.duration), seed=seed)
     metrics = result.metrics

@@ -35,7 +35,7 @@
   it, so ``env.action_space.sample()`` repeats too). A reset without a seed continues the
   streams, so the episodes after one seeded reset repeat as a sequence.
 * **Rendering**: ``render_mode="rgb_array"`` draws the world, the path so far, the body and the
-  scan from above with :mod:`safenav.render`.
+  scan from above with :mod:`safenav.plots`.
 """
 
 from __future__ import annotations
@@ -211,7 +211,7 @@ class SafeNavEnv(gymnasium.Env):
         """The current frame as an ``(H, W, 3)`` uint8 array (``render_mode="rgb_array"``), else ``None``."""
         if self.render_mode is None:
             return None
-        from safenav.render import plot_episode
+        from safenav.plots import plot_episode
 
         state = self._current()
         figure = plot_episode(self._world, self.robot, self._path, collisions=self._contacts or None,

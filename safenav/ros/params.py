@@ -57,7 +57,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("a_max", None, "largest linear acceleration [m/s^2] (default: the preset's)"),
     Parameter("alpha_max", None, "largest angular acceleration [rad/s^2] (default: the preset's)"),
     Parameter("filter", "cbf", "safety filter: cbf, mpc or zones; its settings are <filter>.<field> "
-                               "(e.g. cbf.margin, mpc.horizon), fields of CBFConfig/MPCConfig/ZonesConfig"),
+                               "(e.g. cbf.margin, mpc.horizon_time), fields of CBFConfig/MPCConfig/ZonesConfig"),
     Parameter("escape", False, "wrap the filter in safenav.filters.escape.Escape: a deadlock escape whose "
                                "commands pass through the filter"),
     Parameter("control_period", 0.05, "period of the cmd_vel output and the filter's dt [s]"),

@@ -44,7 +44,9 @@ def _shield_never_fails(env_id: str, steps: int, **make: Any) -> None:
     shielded = _episodes(env_id, shielded=True, steps=steps, **make)
     assert len(shielded) == EPISODES and not any(record.collided for record in shielded)
     assert min(record.min_clearance for record in shielded) >= 0.0
-    assert any(status != "ok" for record in shielded for status in record.statuses)   # it had work to do
+    # It had work to do: it changed some of the agent's actions (a binding row changes the command
+    # with status "ok"; "recovering", "slack", ... only say more about how).
+    assert any(info["shield"]["modified"] for record in shielded for info in record.infos)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -34,11 +34,11 @@ def test_defaults_protect_the_rosbot_with_the_cbf_and_its_lidar_mount():
 def test_robot_overrides_filter_settings_and_sources():
     config = NodeConfig.from_parameters({
         "robot": "puzzlebot", "v_max": 0.3, "footprint": [0.1, 0.08, -0.1, 0.08, -0.1, -0.08, 0.1, -0.08],
-        "filter": "mpc", "mpc.horizon": 30, "cbf.margin": 0.2, "sources": ["front"], "front.topic": "/lidar/scan",
+        "filter": "mpc", "mpc.horizon_time": 1.5, "cbf.margin": 0.2, "sources": ["front"], "front.topic": "/lidar/scan",
         "front.mount": [0.1, 0.0, math.pi], "front.timeout": 0.3, "stamped": True})
     assert config.robot.v_max == 0.3 and config.robot.radius == pytest.approx(math.hypot(0.1, 0.08))
-    assert dict(config.filter_settings) == {"horizon": 30}      # cbf.* is for another filter: ignored
-    assert config.filter_kwargs() == {"scan_timeout": 0.3, "horizon": 30}
+    assert dict(config.filter_settings) == {"horizon_time": 1.5}      # cbf.* is for another filter: ignored
+    assert config.filter_kwargs() == {"scan_timeout": 0.3, "horizon_time": 1.5}
     (source,) = config.sources
     assert (source.topic, tuple(source.mount), source.timeout) == ("/lidar/scan", (0.1, 0.0, math.pi), 0.3)
     assert config.stamped

@@ -1,0 +1,53 @@
+"""The QP back-ends on problems recorded from the filters."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from safenav.filters.qp import QPData, make_backend
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def recorded_cycling_qp() -> QPData:
+    """An SQP step of the MPC for the m2wr stopped in front of obstacles (goal_m2wr, seed 1, t = 29.15 s).
+
+    At DAQP's feasibility tolerance of 1e-10 its active-set iteration cycles on this problem
+    (exit flag -2): the filter fell back to its last plan twice in that episode.
+    """
+    data = np.load(DATA / "daqp_cycling.npz")
+    return QPData(data["P"], data["q"], data["G"], data["h"], data["lb"], data["ub"],
+                  data["h_lower"] if data["h_lower"].size else None)
+
+
+def test_the_recorded_problem_makes_plain_daqp_cycle():
+    daqp = pytest.importorskip("daqp")
+    qp = recorded_cycling_qp()
+    upper = np.concatenate((qp.ub, qp.h))
+    lower = np.concatenate((qp.lb, qp.h_lower))
+    sense = np.where(lower == upper, 5, 0).astype(np.int32)
+    *_, exitflag, _ = daqp.solve(qp.P.copy(), qp.q.copy(), qp.G.copy(), upper, lower, sense, primal_tol=1e-10)
+    assert exitflag == -2
+
+
+def test_direct_daqp_solves_a_problem_it_first_cycles_on():
+    qp = recorded_cycling_qp()
+    outcome = make_backend("daqp").solve(qp)
+    assert outcome.x is not None, outcome.status
+    x = outcome.x
+    assert np.all(qp.G @ x <= qp.h + 1e-8) and np.all(qp.G @ x >= qp.h_lower - 1e-8)
+    assert np.all(x >= qp.lb - 1e-8) and np.all(x <= qp.ub + 1e-8)
+    reference = make_backend("quadprog").solve(qp) if "quadprog" in _installed() else None
+    if reference is not None and reference.x is not None:
+        cost = 0.5 * x @ qp.P @ x + qp.q @ x
+        best = 0.5 * reference.x @ qp.P @ reference.x + qp.q @ reference.x
+        assert cost <= best + 1e-6 * max(1.0, abs(best))
+
+
+def _installed() -> tuple[str, ...]:
+    from safenav.filters import available_solvers
+
+    return tuple(available_solvers())
