@@ -74,7 +74,7 @@ PyBullet comes with the ``sim`` extra. It is imported when a :class:`BulletSim` 
 :class:`~safenav.errors.MissingDependency` with the line ``pip install "safenav[sim]"``. The
 line PyBullet prints when it is imported ("pybullet build time: ...") is swallowed.
 
-This module is longer than most (about 630 lines) because it is one class, the simulator, with
+This module is longer than most (about 700 lines) because it is one class, the simulator, with
 its config and state; the obstacle mesh lives in :mod:`safenav.worlds` and the base models in
 :mod:`safenav.base_models`.
 """
