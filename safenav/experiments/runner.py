@@ -267,8 +267,13 @@ def _on_ray(function: Callable[[Item], Result], items: Sequence[Item], order: Se
                                    "configure_logging": False}
         if address is None:
             options["num_cpus"] = workers
-        with _quiet_stderr():
-            ray.init(**options)
+        try:
+            with _quiet_stderr():
+                ray.init(**options)
+        except ConnectionError as error:
+            raise InvalidConfig(f"no Ray cluster answers at address={address!r} ({error}); expected the address of "
+                                "a running cluster (`ray start --head` on its head node), or no address for a "
+                                "local Ray") from error
     try:
         task = ray.remote(num_cpus=1)(_call)
         shipped = ray.put(function)   # once, not with every task

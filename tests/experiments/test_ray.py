@@ -1,5 +1,8 @@
 """The Ray backend: the same specs give the same outcomes as the process pool; errors name what is wrong."""
 
+import os
+from pathlib import Path
+
 import pytest
 
 from safenav import InvalidConfig, UnknownName
@@ -47,3 +50,12 @@ def test_bad_backend_settings_are_clear_errors(options, error, message):
 def test_run_jobs_keeps_the_order_of_the_items_on_every_backend():
     assert run_jobs(abs, [3, -1, -2], workers=1, progress=False) == [3, 1, 2]
     assert run_jobs(abs, [3, -1, -2], workers=2, progress=False, cost=abs) == [3, 1, 2]
+
+
+
+def test_joining_a_cluster_when_none_runs_is_a_clear_error():
+    ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'safenav[distributed]'")
+    if ray.is_initialized() or os.environ.get("RAY_ADDRESS") or Path("/tmp/ray/ray_current_cluster").exists():
+        pytest.skip("a Ray cluster may be running on this machine: 'auto' would join it")
+    with pytest.raises(InvalidConfig, match="no Ray cluster answers at address='auto'"):
+        run_jobs(abs, [1], progress=False, backend="ray", address="auto")
