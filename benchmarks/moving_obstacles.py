@@ -36,7 +36,7 @@ from benchmarks.common import markdown_table, names, numbers, run_cli, write_jso
 from safenav._checks import argument_type, choice, integer, number, positive, writable_file
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments import wilson_interval
-from safenav.experiments.runner import add_sweep_options, run_jobs
+from safenav.experiments.runner import add_sweep_options, reproducible_settings, run_jobs
 from safenav.filters import FILTER_NAMES, default_margin, make_filter
 from safenav.robot import PRESET_NAMES
 from safenav.scenarios import scenario
@@ -66,6 +66,7 @@ class MovingJob:
     seed: int
     duration: float
     extra_margin: float = 0.0
+    real_time: bool = False
 
 
 def world_for(job: MovingJob) -> DynamicWorld:
@@ -88,7 +89,9 @@ def run_job(job: MovingJob) -> dict[str, Any]:
     robot = task.robot
     world = world_for(job)
     config = EpisodeConfig(duration=job.duration)
-    options = {"margin": default_margin(robot) + job.extra_margin} if job.extra_margin else {}
+    options = {} if job.real_time else reproducible_settings(job.filter)
+    if job.extra_margin:
+        options["margin"] = default_margin(robot) + job.extra_margin
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **options)
     policy = task.policy("random_walk", world, job.seed)
     started = time.perf_counter()
@@ -157,6 +160,8 @@ def build_parser(prog: str = "moving_obstacles") -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=argument_type(positive), default=20.0,
                         help="episode length [s] (default: 20)")
     parser.add_argument("--quick", action="store_true", help="rosbot, cbf, speeds 0.5 and 1.5, 4 walkers, 2 seeds")
+    parser.add_argument("--real-time", action="store_true",
+                        help="keep the MPC's compute budget (results then depend on the machine's load)")
     add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser
@@ -182,7 +187,7 @@ def _run(args: argparse.Namespace) -> int:
         filters_with_margin = [name for name in FILTER_NAMES if name.split("+")[0] in ("cbf", "mpc")]
         for name in filters:
             choice("filter with a margin (--margins)", name, filters_with_margin)
-    jobs = [MovingJob(robot, name, speed, int(count), seed, args.duration, extra)
+    jobs = [MovingJob(robot, name, speed, int(count), seed, args.duration, extra, args.real_time)
             for robot in robots for name in filters for extra in args.margins for speed in args.speeds
             for count in args.counts for seed in range(args.seeds)]
     print(f"{len(jobs)} episodes of {args.duration:g} s: {len(robots)} robots x {len(filters)} filters x "

@@ -54,7 +54,7 @@ if __package__ in (None, ""):   # python benchmarks/stop_metrics.py: import from
 from benchmarks.common import markdown_table, names, run_cli, write_json
 from safenav._checks import argument_type, choice, integer, number, positive, writable_file
 from safenav.episode import EpisodeConfig, run_episode
-from safenav.experiments.runner import add_sweep_options, run_jobs
+from safenav.experiments.runner import add_sweep_options, reproducible_settings, run_jobs
 from safenav.filters import FILTER_NAMES, make_filter
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
@@ -200,6 +200,7 @@ class StopJob:
     gap: float = 0.5
     pass_gap: float = 0.3
     stay: float = 5.0
+    real_time: bool = False
 
 
 @dataclass(frozen=True)
@@ -249,7 +250,8 @@ def run_job(job: StopJob) -> dict[str, Any]:
     robot = preset(job.robot)
     plan = script(job)
     config = EpisodeConfig(duration=plan.duration, stop_on_collision=False)
-    safety_filter = make_filter(job.filter, robot, config.sim.control_dt)
+    settings = {} if job.real_time else reproducible_settings(job.filter)
+    safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **settings)
     started = time.perf_counter()
     result = run_episode(plan.world, robot, Cruise(CRUISE_SPEED[job.robot]), safety_filter, config=config,
                          seed=job.seed, record=True)
@@ -344,6 +346,8 @@ def build_parser(prog: str = "stop_metrics") -> argparse.ArgumentParser:
     parser.add_argument("--stay", type=argument_type(positive), default=5.0,
                         help="step-in: how long the walker stands in the path [s] (default: 5, as in Nav2's bag)")
     parser.add_argument("--quick", action="store_true", help="one seed")
+    parser.add_argument("--real-time", action="store_true",
+                        help="keep the MPC's compute budget (results then depend on the machine's load)")
     add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser
@@ -364,7 +368,8 @@ def _run(args: argparse.Namespace) -> int:
     robots = [choice("robot", name, tuple(CRUISE_SPEED)) for name in args.robots]
     filters = [choice("filter", name, FILTER_NAMES) for name in args.filters]
     seeds = 1 if args.quick else args.seeds
-    jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay)
+    jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay,
+                    real_time=args.real_time)
             for robot in robots for name in filters for episode in EPISODES for seed in range(seeds)]
     print(f"{len(jobs)} episodes: {len(robots)} robots x {len(filters)} filters x {len(EPISODES)} episodes x "
           f"{seeds} seeds, on {args.backend}")

@@ -37,12 +37,13 @@ from safenav._optional import require
 from safenav.episode import EpisodeConfig, EpisodeMetrics, Trajectory, run_episode
 from safenav.errors import InvalidConfig
 from safenav.experiments.specs import EpisodeSpec
-from safenav.filters import make_filter
+from safenav.filters import ESCAPE_SUFFIX, make_filter
 from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
-__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_sweep_options", "run_jobs", "run_spec", "run_specs"]
+__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_sweep_options", "reproducible_settings", "run_jobs",
+           "run_spec", "run_specs"]
 
 BACKENDS = ("process", "ray")
 """Where :func:`run_jobs` runs: a local process pool (the default), or Ray tasks (the ``distributed`` extra)."""
@@ -153,6 +154,17 @@ def _is_terminal(stream: IO[str]) -> bool:
         return stream.isatty()
     except (AttributeError, ValueError):   # no isatty, or closed
         return False
+
+
+def reproducible_settings(filter_name: str) -> dict[str, Any]:
+    """Filter settings under which an episode depends only on its seed, not on the machine's load.
+
+    The MPC's compute budget makes a call that runs over it follow the last verified plan (status
+    ``fallback``, "deadline"): right on a robot, but on a loaded machine (a sweep on every core) the
+    same seed then gives another episode. Sweeps that compare filters run it without the budget
+    (``budget=inf``); the deadline has its own tests.
+    """
+    return {"budget": math.inf} if filter_name.removesuffix(ESCAPE_SUFFIX) == "mpc" else {}
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:

@@ -1,5 +1,6 @@
 """The Ray backend: the same specs give the same outcomes as the process pool; errors name what is wrong."""
 
+import math
 import os
 from pathlib import Path
 
@@ -7,7 +8,7 @@ import pytest
 
 from safenav import InvalidConfig, UnknownName
 from safenav.experiments import cell_records, episode_specs, matrix, run_specs
-from safenav.experiments.runner import run_jobs
+from safenav.experiments.runner import reproducible_settings, run_jobs
 
 TIMING = {"filter_p50_us", "filter_p99_us", "episode_wall_s"}
 
@@ -59,3 +60,9 @@ def test_joining_a_cluster_when_none_runs_is_a_clear_error():
         pytest.skip("a Ray cluster may be running on this machine: 'auto' would join it")
     with pytest.raises(InvalidConfig, match="no Ray cluster answers at address='auto'"):
         run_jobs(abs, [1], progress=False, backend="ray", address="auto")
+
+
+def test_reproducible_settings_take_the_mpcs_compute_budget_away_only():
+    assert reproducible_settings("mpc") == {"budget": math.inf}
+    assert reproducible_settings("mpc+escape") == {"budget": math.inf}
+    assert reproducible_settings("cbf") == {} and reproducible_settings("none") == {}
