@@ -1,5 +1,6 @@
 """The moving-obstacle sweep's worlds and table (benchmarks/moving_obstacles.py), without running episodes."""
 
+import json
 import math
 
 import pytest
@@ -41,3 +42,14 @@ def test_summarise_counts_collisions_with_the_wilson_interval():
 def test_a_margin_for_a_filter_without_one_is_a_clear_error(capsys):
     assert main(["--filters", "zones", "--margins", "0,0.1"]) == 2
     assert "unknown filter with a margin (--margins) 'zones'" in capsys.readouterr().err
+
+
+@pytest.mark.sim
+def test_a_tiny_sweep_writes_its_rows(tmp_path, capsys):
+    path = tmp_path / "moving.json"
+    assert main(["--robots", "rosbot", "--filters", "cbf", "--speeds", "1.0", "--counts", "2", "--seeds", "2",
+                 "--duration", "2", "--workers", "1", "--no-progress", "--json", str(path)]) == 0
+    assert "OUTSIDE THE GUARANTEE" in capsys.readouterr().out
+    written = json.loads(path.read_text())
+    (row,) = written["rows"]
+    assert (row["robot"], row["filter"], row["count"], row["speed"], row["episodes"]) == ("rosbot", "cbf", 2, 1.0, 2)

@@ -1,6 +1,10 @@
 """Stop metrics (benchmarks/stop_metrics.py) on hand-computed scripted trajectories, no simulator."""
 
+import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +14,7 @@ from benchmarks.stop_metrics import (
     StopJob,
     StopThresholds,
     first_sustained,
+    main,
     passes,
     script,
     stop_metrics,
@@ -105,3 +110,21 @@ def test_the_step_in_window_is_when_the_walker_overlaps_the_path(robot):
     beside = script(StopJob(robot, "none", "pass_beside", seed=3, pass_gap=0.3))
     assert beside.window is None
     assert abs(beside.walker.position(2.0)[1]) == pytest.approx(reach + 0.3)
+
+
+@pytest.mark.sim
+def test_a_tiny_run_prints_the_table_and_writes_the_json(tmp_path, capsys):
+    path = tmp_path / "stop.json"
+    assert main(["--filters", "cbf", "--quick", "--workers", "1", "--no-progress", "--json", str(path)]) == 0
+    assert "| ROS 2 collision monitor test |" in capsys.readouterr().out
+    written = json.loads(path.read_text())
+    (row,) = written["rows"]
+    assert (row["filter"], row["robot"], row["collisions"]) == ("cbf", "rosbot", 0)
+    assert {episode["episode"] for episode in written["episodes"]} == {"step_in", "pass_beside"}
+
+
+def test_the_script_form_runs_from_anywhere(tmp_path):
+    script_path = Path(__file__).resolve().parents[2] / "benchmarks" / "stop_metrics.py"
+    done = subprocess.run([sys.executable, str(script_path), "--help"], cwd=tmp_path, capture_output=True, text=True,
+                          check=False)
+    assert done.returncode == 0 and "time-to-stop" in done.stdout
