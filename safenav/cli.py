@@ -31,7 +31,8 @@ if TYPE_CHECKING:
 
 BENCHMARKS: Mapping[str, str] = MappingProxyType({
     "collisions": "collision_rates", "latency": "filter_latency", "sim": "sim_speed",
-    "robustness": "robustness", "soak": "soak", "braking": "braking"})
+    "robustness": "robustness", "soak": "soak", "braking": "braking", "stop": "stop_metrics",
+    "moving": "moving_obstacles"})
 """Short names of ``safenav bench NAME`` and the module of ``benchmarks/`` each runs; every other
 module of a checkout's ``benchmarks/`` runs under its own name."""
 

@@ -28,6 +28,11 @@ Model, and why:
   reports hit fractions in single precision (about 1e-7 of ``range_max``), and its triangle
   ray test accepts hits up to 1e-4 of a face's width past the face's edge: a beam that grazes
   a corner may read the face it just misses (up to 25 µm past the corner of a 25 cm box).
+* **Moving obstacles** (a :class:`~safenav.worlds.dynamic.DynamicWorld`'s movers) are one
+  small mesh body each, put where their path says before every scan (and far below the floor
+  while they do not exist); the truth clearance includes them at every physics step, exactly
+  (:meth:`~safenav.worlds.dynamic.DynamicWorld.clearance_at`). They pass through the robot
+  as the static obstacles do: contacts are recorded, not resolved.
 * **Robot** is kinematic. A command ``(v, omega)`` is clipped to the velocity limits, and
   the base's velocity follows it by the model ``SimConfig.base`` (:mod:`safenav.base_models`:
   at the acceleration limits at every physics step by default, or at once, or a linear ramp
@@ -69,7 +74,7 @@ PyBullet comes with the ``sim`` extra. It is imported when a :class:`BulletSim` 
 :class:`~safenav.errors.MissingDependency` with the line ``pip install "safenav[sim]"``. The
 line PyBullet prints when it is imported ("pybullet build time: ...") is swallowed.
 
-This module is longer than most (about 630 lines) because it is one class, the simulator, with
+This module is longer than most (about 700 lines) because it is one class, the simulator, with
 its config and state; the obstacle mesh lives in :mod:`safenav.worlds` and the base models in
 :mod:`safenav.base_models`.
 """
@@ -101,6 +106,7 @@ from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 from safenav.seeding import generator
 from safenav.worlds import World, obstacle_mesh
+from safenav.worlds.dynamic import DynamicWorld
 
 __all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "gui_problem", "import_pybullet", "obstacle_mesh"]
 
@@ -148,6 +154,8 @@ def import_pybullet() -> ModuleType:
 _OBSTACLE_RGBA = (0.55, 0.55, 0.55, 1.0)
 _ROBOT_RGBA = (0.17, 0.63, 0.17, 1.0)
 _GOAL_RGBA = (0.58, 0.40, 0.74, 0.8)
+_MOVER_RGBA = (0.84, 0.15, 0.16, 1.0)
+_ABSENT_DEPTH = -1000.0   # [m]: where a moving obstacle that does not exist waits, out of every ray's reach
 _HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit fraction, position, normal)
 
 
@@ -330,6 +338,8 @@ class BulletSim:
             raise SimulatorError("could not connect to PyBullet" + (" (GUI needs a display)" if config.gui else ""))
         self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
+        self._movers = world.movers if isinstance(world, DynamicWorld) else ()
+        self._mover_bodies = [self._build_mover(mover.shape) for mover in self._movers]
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
                                                     physicsClientId=self._client)
@@ -360,6 +370,33 @@ class BulletSim:
             raise SimulatorError(f"PyBullet could not build the obstacle mesh of world {self.world.name!r}")
         return pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape, baseVisualShapeIndex=visual,
                                         physicsClientId=client)
+
+    def _build_mover(self, shape: Any) -> int:
+        """One body per moving obstacle: its prism around the body origin, moved before every scan."""
+        pybullet, client = self._bullet, self._client
+        footprint = World("mover", (shape,), obstacle_height=self.world.obstacle_height)
+        vertices, indices = obstacle_mesh(footprint, tolerance=self.config.cylinder_tolerance)
+        collision = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=vertices.tolist(),
+                                                  indices=indices.ravel().tolist(), physicsClientId=client)
+        if collision < 0:
+            raise SimulatorError(f"PyBullet could not build the mesh of the moving obstacle {shape!r}")
+        visual = -1
+        if self.config.gui:
+            visual_vertices, visual_indices = obstacle_mesh(footprint, tolerance=self.config.cylinder_tolerance,
+                                                            caps=True)
+            visual = pybullet.createVisualShape(pybullet.GEOM_MESH, vertices=visual_vertices.tolist(),
+                                                indices=visual_indices.ravel().tolist(), rgbaColor=_MOVER_RGBA,
+                                                physicsClientId=client)
+        return pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=collision,
+                                        baseVisualShapeIndex=visual, physicsClientId=client)
+
+    def _place_movers(self, time: float) -> None:
+        """Put every moving obstacle where it is at ``time`` [s]; one that does not exist goes far below the floor."""
+        for mover, body in zip(self._movers, self._mover_bodies, strict=True):
+            x, y = mover.position(time)
+            z = 0.0 if mover.present(time) else _ABSENT_DEPTH
+            self._bullet.resetBasePositionAndOrientation(body, [x, y, z], [0.0, 0.0, 0.0, 1.0],
+                                                         physicsClientId=self._client)
 
     def _build_robot(self) -> int:
         """A body with a visual shape only: it carries the lidar frame and shows the robot in the GUI."""
@@ -438,9 +475,20 @@ class BulletSim:
 
     # ------------------------------------------------------------------ truth
 
-    def clearance(self, pose: Pose2D | Sequence[float] | None = None) -> float:
-        """Exact signed body clearance at ``pose`` (the current pose by default) [m]."""
-        return self.world.clearance(self.state.pose if pose is None else pose, self.robot.radius)
+    def clearance(self, pose: Pose2D | Sequence[float] | None = None, time: float | None = None) -> float:
+        """Exact signed body clearance at ``pose`` (the current pose by default) [m].
+
+        Args:
+            pose: the base pose (or position) [m].
+            time: where the moving obstacles are [s]; the current time by default.
+        """
+        return self._truth(self.state.pose if pose is None else pose, self.state.time if time is None else time)
+
+    def _truth(self, pose: Pose2D | Sequence[float], time: float) -> float:
+        """Exact signed body clearance at ``pose`` with the moving obstacles where they are at ``time`` [m]."""
+        if self._movers:
+            return self.world.clearance_at(pose, self.robot.radius, time)
+        return self.world.clearance(pose, self.robot.radius)
 
     def bullet_clearance(self, pose: Pose2D | Sequence[float] | None = None, max_distance: float = 2.0) -> float:
         """Body clearance at ``pose`` measured by PyBullet's ``getClosestPoints`` [m].
@@ -448,7 +496,7 @@ class BulletSim:
         A sphere of the body radius at the lidar height is tested against the obstacle
         mesh; on vertical prisms that equals the clearance of the body disk, up to the
         cylinder polygon tolerance (the polygon is larger, so the value is smaller).
-        For cross-checks of :meth:`clearance`.
+        For cross-checks of :meth:`clearance`; moving obstacles are not included.
 
         Args:
             pose: the base pose (or position); the current pose by default.
@@ -494,6 +542,9 @@ class BulletSim:
         n = lidar.n_beams
         half_yaw = 0.5 * pose.yaw
         pybullet = self._bullet
+        time_of_cast = 0.0 if stamp is None else stamp
+        if self._movers:
+            self._place_movers(time_of_cast)
         pybullet.resetBasePositionAndOrientation(self._robot_body, [pose.x, pose.y, 0.0],
                                                  [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
                                                  physicsClientId=self._client)
@@ -501,7 +552,7 @@ class BulletSim:
                                      parentObjectUniqueId=self._robot_body, physicsClientId=self._client)
         fraction = np.fromiter(map(_HIT_FRACTION, hits), dtype=float, count=n)
         ranges = np.where(fraction < 1.0, fraction * lidar.range_max, math.inf)
-        if self._sensor_inside(pose, clearance):
+        if self._sensor_inside(pose, clearance, time_of_cast):
             ranges[:] = -math.inf   # rays from inside a closed mesh would report its far side
         if self._range_noise > 0.0:
             ranges += self._range_noise * self._sensor_rng.standard_normal(n)   # +-inf stay +-inf
@@ -511,12 +562,12 @@ class BulletSim:
             ranges[self._sensor_rng.random(n) < self.config.dropout] = math.nan
         return lidar.scan(ranges, stamp=stamp)
 
-    def _sensor_inside(self, pose: Pose2D, clearance: float | None) -> bool:
-        """Whether the lidar sits inside an obstacle (only possible when the body overlaps one)."""
+    def _sensor_inside(self, pose: Pose2D, clearance: float | None, time: float) -> bool:
+        """Whether the lidar sits inside an obstacle at ``time`` (only possible when the body overlaps one)."""
         if clearance is not None and clearance >= self._mount_offset - self.robot.radius:
             return False
         sensor = pose.compose(self._true_mount)
-        return bool(self.world.signed_distance(np.array([[sensor.x, sensor.y]]))[0] < 0.0)
+        return self._truth((sensor.x, sensor.y), time) + self.robot.radius < 0.0
 
     # ------------------------------------------------------------------ episode
 
@@ -543,7 +594,7 @@ class BulletSim:
         self._physics_steps = 0
         self._steps = 0
         self._commands = collections.deque([np.zeros(2)] * config.command_latency)
-        clearance = self.world.clearance(pose, self.robot.radius)
+        clearance = self._truth(pose, 0.0)
         self._first_collision = 0.0 if clearance < 0.0 else None
         scan = self._cast(pose, 0.0, clearance)
         self._scans = collections.deque([scan] * (config.scan_latency + 1), maxlen=config.scan_latency + 1)
@@ -581,7 +632,7 @@ class BulletSim:
         for v, omega in executed.tolist():
             pose = unicycle_step(pose, v, omega, dt)
             self._physics_steps += 1
-            clearance = self.world.clearance(pose, robot.radius)
+            clearance = self._truth(pose, self._physics_steps * dt)
             min_clearance = min(min_clearance, clearance)
             if clearance < 0.0 and self._first_collision is None:
                 self._first_collision = self._physics_steps * dt

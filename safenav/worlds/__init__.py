@@ -7,11 +7,23 @@ module                 holds
 ``world``              :class:`World` (exact signed distances, analytic scene, the simulator's mesh)
 ``tutorial``           :data:`TUTORIALS`, the three classic tutorials; :func:`tutorial_world`
 ``generator``          :func:`random_world`, seeded random arenas; :func:`reachable`
+``dynamic``            :class:`DynamicWorld`, :class:`MovingObstacle`; scripted encounters and seeded walkers
 =====================  ========================================================================
 
 Drawing a world is :func:`safenav.plots.plot_world`.
 """
 
+from safenav.worlds.dynamic import (
+    DynamicWorld,
+    MovingObstacle,
+    crossing,
+    head_on,
+    overtaking,
+    pass_beside,
+    patrols,
+    random_movers,
+    step_in,
+)
 from safenav.worlds.generator import GRID_RESOLUTION, START_CLEARANCE, random_world, reachable
 from safenav.worlds.shapes import WALL_THICKNESS, Box, Cylinder, Obstacle, Wall, gap, room
 from safenav.worlds.tutorial import TUTORIAL_WORLDS, TUTORIALS, Tutorial, tutorial_world
@@ -25,14 +37,23 @@ __all__ = [
     "WALL_THICKNESS",
     "Box",
     "Cylinder",
+    "DynamicWorld",
+    "MovingObstacle",
     "Obstacle",
     "Tutorial",
     "Wall",
     "World",
+    "crossing",
     "gap",
+    "head_on",
     "obstacle_mesh",
+    "overtaking",
+    "pass_beside",
+    "patrols",
+    "random_movers",
     "random_world",
     "reachable",
     "room",
+    "step_in",
     "tutorial_world",
 ]
