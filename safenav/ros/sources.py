@@ -52,6 +52,19 @@ class Source(abc.ABC):
 
     def __init__(self, config: SourceConfig) -> None:
         self.config = config
+        self._views: dict[type, type[_Renamed]] = {}
+
+    def renamed(self, msg: Any) -> Any:
+        """``msg`` seen with ``header.frame_id`` set to the source's name (its stamp and data kept, not copied).
+
+        The view's type has the message type's name, so a conversion error still names the
+        message (``message PointCloud2 has no field 'height'``).
+        """
+        kind = type(msg)
+        view = self._views.get(kind)
+        if view is None:
+            view = self._views[kind] = type(kind.__name__, (_Renamed,), {})
+        return view(msg, self.config.name)
 
     @abc.abstractmethod
     def convert(self, msg: Any) -> LaserScan:
@@ -72,7 +85,7 @@ class ScanSource(Source):
     message = ("sensor_msgs", "LaserScan")
 
     def convert(self, msg: Any) -> LaserScan:
-        return LaserScan.from_msg(_Renamed(msg, self.config.name), mount=self.config.mount)
+        return LaserScan.from_msg(self.renamed(msg), mount=self.config.mount)
 
 
 class PointCloudSource(Source):
@@ -94,11 +107,11 @@ class PointCloudSource(Source):
         self.lidar = config.lidar
 
     def convert(self, msg: Any) -> LaserScan:
-        return scan_from_cloud(_Renamed(msg, self.config.name), self.lidar)
+        return scan_from_cloud(self.renamed(msg), self.lidar)
 
 
 class _Renamed:
-    """``msg`` seen with ``header.frame_id`` replaced (its stamp kept), without copying its data."""
+    """``msg`` seen with ``header.frame_id`` replaced, its stamp and data kept (:meth:`Source.renamed`)."""
 
     def __init__(self, msg: Any, frame_id: str) -> None:
         self._msg = msg

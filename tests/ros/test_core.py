@@ -380,3 +380,9 @@ def test_a_malformed_cloud_brakes_names_the_field_and_the_next_good_one_recovers
     assert out.commands[1] == (0.0, 0.0) and len(out.commands) == 4      # zero once, then silent
     assert core.state.status == "ok" and 0.0 < out.commands[-1][0] < 0.3      # (the first after is late)
     assert len([w for w in warnings if "malformed message" in w]) == 1
+    # A message without a field: the reason names the message's own type and the field.
+    fields = vars(cloud_message(0.4))
+    core.on_scan("cloud", SimpleNamespace(**{k: v for k, v in fields.items() if k != "height"}), 0.3)
+    core.on_command(twist(0.5, 0.0), 0.3)
+    state = core.tick(0.3, out)
+    assert state.status == "bad_message" and "message SimpleNamespace has no field 'height'" in state.reason
