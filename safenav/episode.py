@@ -2,8 +2,9 @@
 
 At every control period the policy maps the main lidar's scan (and the pose, for
 goal-seeking policies) to ``u_nom``, the filter (if any) maps ``u_nom`` and the scan (every
-lidar's scan on a robot with several) and the measured velocity to ``u``, and the simulator holds ``u`` for one period. The filter sees only what
-a real robot would: the scan and the odometry velocity. The metrics use the simulator's
+lidar's scan on a robot with several) and the measured velocity to ``u``, and the simulator
+holds ``u`` for one period. The filter sees only what a real robot would: the scans and the
+odometry velocity. The metrics use the simulator's
 truth::
 
     from safenav import preset
