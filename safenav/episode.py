@@ -1,9 +1,10 @@
 """One closed-loop episode: world, robot, nominal policy, optional safety filter, in the simulator.
 
-At every control period the policy maps the scan (and the pose, for goal-seeking
-policies) to ``u_nom``, the filter (if any) maps ``u_nom`` and the scan (and the measured
-velocity) to ``u``, and the simulator holds ``u`` for one period. The filter sees only what
-a real robot would: the scan and the odometry velocity. The metrics use the simulator's
+At every control period the policy maps the main lidar's scan (and the pose, for
+goal-seeking policies) to ``u_nom``, the filter (if any) maps ``u_nom`` and the scan (every
+lidar's scan on a robot with several) and the measured velocity to ``u``, and the simulator
+holds ``u`` for one period. The filter sees only what a real robot would: the scans and the
+odometry velocity. The metrics use the simulator's
 truth::
 
     from safenav import preset
@@ -230,7 +231,8 @@ def run_episode(
             if safety_filter is None:
                 u, status = u_nom, "none"
             else:
-                result = safety_filter.filter(u_nom, scan, velocity=state.velocity if config.give_velocity else None,
+                sensed = state.scans if len(state.scans) > 1 else scan   # every lidar's scan, matched by frame_id
+                result = safety_filter.filter(u_nom, sensed, velocity=state.velocity if config.give_velocity else None,
                                               now=state.time)
                 filter_times.append(result.filter_time)
                 u, status = result.u, result.status.value

@@ -41,13 +41,16 @@ Model, and why:
   Contacts are detected, not resolved: a robot driven into a wall passes through it, and
   the collision is recorded. The robot's PyBullet body has a visual shape and no collision
   shape, so rays never hit it.
-* **Lidar**: one ``rayTestBatch`` per scan, in the frame of the robot body, from the
-  true mount (``lidar.mount`` with ``SimConfig.mount_yaw_error`` added to its yaw) at
-  ``lidar.height``, one ray per beam of the preset, ``range_max`` long. Hits closer than
-  ``range_min`` read ``-inf``, no hit reads ``+inf`` (REP-117); a sensor inside an
-  obstacle reads ``-inf`` on every beam. All beams are cast at the same instant (no
-  motion distortion). The scan is returned in the preset's own convention
-  (:meth:`~safenav.robot.LidarSpec.scan`), with the *nominal* mount.
+* **Lidars**: every lidar of ``robot.lidars`` (the main one, then
+  :attr:`~safenav.robot.RobotSpec.extra_lidars`), all cast in one ``rayTestBatch`` per
+  period, in the frame of the robot body, each from its true mount (``lidar.mount`` with
+  ``SimConfig.mount_yaw_error`` added to its yaw) at its ``lidar.height``, one ray per beam,
+  ``range_max`` long. Hits closer than ``range_min`` read ``-inf``, no hit reads ``+inf``
+  (REP-117); a sensor inside an obstacle reads ``-inf`` on every beam. All beams of all
+  lidars are cast at the same instant (no motion distortion). Each scan is returned in its
+  lidar's own convention (:meth:`~safenav.robot.LidarSpec.scan`), with the *nominal* mount
+  and the lidar's ``frame_id``: :attr:`SimState.scans` holds them all (main first),
+  :attr:`SimState.scan` the main lidar's.
 * **Truth**: the body clearance is exact and analytic (:meth:`World.clearance
   <safenav.worlds.World.clearance>` on the true circles and rectangles), evaluated at
   every physics step for the first-collision time. :meth:`BulletSim.bullet_clearance`
@@ -57,9 +60,12 @@ Noise and delays (all off by default except the preset's lidar noise), drawn fro
 ``sensor`` and ``actuation`` streams of the seed (:mod:`safenav.seeding`), so the same seed
 gives the same episode:
 
-* range noise: Gaussian, std ``SimConfig.range_noise`` [m] (the preset's
-  ``lidar.noise_std`` when ``None``), added to every hit before the range limits apply;
+* range noise: Gaussian, std ``SimConfig.range_noise`` [m] (each lidar's own
+  ``noise_std`` when ``None``), added to every hit before the range limits apply;
 * dropout: each beam reads ``NaN`` with probability ``SimConfig.dropout``;
+* the main lidar draws its noise and dropout from the ``sensor`` stream itself, and extra
+  lidar ``k`` (1, 2, ...) from child ``k`` of that stream (``stream(seed, "sensor").spawn``):
+  adding a lidar leaves the main lidar's readings, and every one-lidar episode, unchanged;
 * actuation noise: *relative*. Once per control period a factor ``1 + s * N(0, 1)`` is
   drawn for ``v`` and another for ``omega``, ``s = SimConfig.actuation_noise``; the executed
   velocity is the base model's velocity times these factors (wheel slip and calibration
@@ -68,6 +74,7 @@ gives the same episode:
   :meth:`BulletSim.step` receives it (zeros before the first one arrives);
 * scan latency: the scan delivered at a step was acquired ``scan_latency`` control
   periods earlier (the reset scan until then); ``scan.stamp`` stays the acquisition time.
+  Every lidar of the robot is delayed alike.
 
 PyBullet comes with the ``sim`` extra. It is imported when a :class:`BulletSim` is built (so
 :class:`SimConfig` and the episode specs need no PyBullet); without it that raises
@@ -93,7 +100,7 @@ import weakref
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -102,9 +109,9 @@ from safenav._optional import require
 from safenav.base_models import BASE_MODELS, period_velocities
 from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
 from safenav.geometry import Pose2D, unicycle_step
-from safenav.robot import RobotSpec, as_command
+from safenav.robot import LidarSpec, RobotSpec, as_command
 from safenav.scan import LaserScan
-from safenav.seeding import generator
+from safenav.seeding import generator, stream
 from safenav.worlds import World, obstacle_mesh
 from safenav.worlds.dynamic import DynamicWorld
 
@@ -157,6 +164,21 @@ _GOAL_RGBA = (0.58, 0.40, 0.74, 0.8)
 _MOVER_RGBA = (0.84, 0.15, 0.16, 1.0)
 _ABSENT_DEPTH = -1000.0   # [m]: where a moving obstacle that does not exist waits, out of every ray's reach
 _HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit fraction, position, normal)
+_RAY_BATCH_LIMIT = 16384   # pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE: rays rayTestBatch takes in one call
+
+
+class _CastLidar(NamedTuple):
+    """One lidar as the simulator casts it: its rays' place in the batch, true mount and noise."""
+
+    lidar: LidarSpec
+    beams: slice
+    """Its rays in the one batch of every lidar's rays."""
+    true_mount: Pose2D
+    """The nominal mount with ``SimConfig.mount_yaw_error`` added to its yaw."""
+    mount_offset: float
+    """Distance from the base origin to the lidar [m]."""
+    range_noise: float
+    """Std of the Gaussian range noise [m]."""
 
 
 def gui_problem() -> str | None:
@@ -265,8 +287,8 @@ class SimState:
         time: simulated time since the reset [s].
         pose: pose of the base [m, m, rad].
         velocity: actual ``(v [m/s], omega [rad/s])`` over the last physics step (read-only).
-        scan: the delivered scan; ``stamp`` is its acquisition time [s] and ``mount`` the
-            nominal ``robot.lidar.mount``.
+        scan: the main lidar's delivered scan; ``stamp`` is its acquisition time [s] and
+            ``mount`` the nominal ``robot.lidar.mount``.
         clearance: signed body clearance to the nearest obstacle [m] (negative: overlap).
         collided: the body overlaps an obstacle now.
         first_collision_time: time of the first physics step with an overlap since the reset [s].
@@ -274,6 +296,8 @@ class SimState:
         command: the command the base tracked during the last period, after clipping to the
             velocity limits and the command latency [m/s, rad/s] (read-only).
         steps: control periods since the reset.
+        scans: the delivered scans of every lidar of ``robot.lidars``, main first (``scan`` is
+            ``scans[0]``), with one stamp and each its lidar's nominal mount and ``frame_id``.
     """
 
     time: float
@@ -286,6 +310,7 @@ class SimState:
     min_clearance: float
     command: np.ndarray
     steps: int
+    scans: tuple[LaserScan, ...]
 
 
 def _disconnect(bullet: ModuleType, client: int) -> None:
@@ -302,11 +327,11 @@ class BulletSim:
 
     Args:
         world: the world to build.
-        robot: the robot (body radius, limits, lidar).
+        robot: the robot (body radius, limits, lidars: every one of ``robot.lidars`` is cast).
         config: simulator settings.
         seed: the episode's seed (:mod:`safenav.seeding`): range noise and dropout draw from
-            its ``sensor`` stream, actuation noise from its ``actuation`` stream; ``None``
-            draws fresh entropy.
+            its ``sensor`` stream (extra lidars from that stream's children), actuation noise
+            from its ``actuation`` stream; ``None`` draws fresh entropy.
 
     Raises:
         InvalidConfig: a bad argument, or a lidar that scans above the obstacles.
@@ -321,9 +346,11 @@ class BulletSim:
             raise InvalidConfig(f"BulletSim: robot must be a RobotSpec, got {robot!r}")
         if not isinstance(config, SimConfig):
             raise InvalidConfig(f"BulletSim: config must be a SimConfig, got {config!r}")
-        if robot.lidar.height >= world.obstacle_height:
-            raise InvalidConfig(f"BulletSim: the lidar scans at {robot.lidar.height} m, above the obstacles of "
-                                f"world {world.name!r} ({world.obstacle_height} m); expected a lower lidar")
+        for lidar in robot.lidars:
+            if lidar.height >= world.obstacle_height:
+                raise InvalidConfig(f"BulletSim: lidar {lidar.frame_id!r} scans at {lidar.height} m, above the "
+                                    f"obstacles of world {world.name!r} ({world.obstacle_height} m); "
+                                    "expected a lower lidar")
         problem = gui_problem() if config.gui else None
         if problem is not None:
             raise SimulatorError(problem)
@@ -331,7 +358,6 @@ class BulletSim:
         self.robot = robot
         self.config = config
         self._seed(seed)
-        self._range_noise = robot.lidar.noise_std if config.range_noise is None else config.range_noise
         self._bullet = pybullet = import_pybullet()
         self._client = pybullet.connect(pybullet.GUI if config.gui else pybullet.DIRECT)
         if self._client < 0:
@@ -351,7 +377,9 @@ class BulletSim:
     # ------------------------------------------------------------------ construction
 
     def _seed(self, seed: int | None) -> None:
-        self._sensor_rng = generator(seed, "sensor")
+        extra = len(self.robot.extra_lidars)
+        children = stream(seed, "sensor").spawn(extra) if extra else []
+        self._sensor_rngs = [generator(seed, "sensor"), *(np.random.default_rng(child) for child in children)]
         self._actuation_rng = generator(seed, "actuation")
 
     def _build_obstacles(self) -> int | None:
@@ -414,18 +442,22 @@ class BulletSim:
                                         physicsClientId=client)
 
     def _build_rays(self) -> None:
-        """Ray end points in the robot body frame, through the true mount, one per beam."""
-        lidar = self.robot.lidar
-        mount = lidar.mount
-        template = lidar.scan()
-        directions = template.angles + mount.yaw + self.config.mount_yaw_error
-        origin = [mount.x, mount.y, lidar.height]
-        self._ray_from = [origin] * lidar.n_beams
-        self._ray_to = np.column_stack((mount.x + lidar.range_max * np.cos(directions),
-                                        mount.y + lidar.range_max * np.sin(directions),
-                                        np.full(lidar.n_beams, lidar.height))).tolist()
-        self._true_mount = Pose2D(mount.x, mount.y, mount.yaw + self.config.mount_yaw_error)
-        self._mount_offset = math.hypot(mount.x, mount.y)
+        """Ray end points in the robot body frame, every lidar's through its true mount, one per beam."""
+        starts, ends, cast = [], [], []
+        for lidar in self.robot.lidars:
+            mount, first = lidar.mount, len(starts)
+            directions = lidar.scan().angles + mount.yaw + self.config.mount_yaw_error
+            starts += [[mount.x, mount.y, lidar.height]] * lidar.n_beams
+            ends += np.column_stack((mount.x + lidar.range_max * np.cos(directions),
+                                     mount.y + lidar.range_max * np.sin(directions),
+                                     np.full(lidar.n_beams, lidar.height))).tolist()
+            cast.append(_CastLidar(
+                lidar=lidar, beams=slice(first, first + lidar.n_beams),
+                true_mount=Pose2D(mount.x, mount.y, mount.yaw + self.config.mount_yaw_error),
+                mount_offset=math.hypot(mount.x, mount.y),
+                range_noise=lidar.noise_std if self.config.range_noise is None else self.config.range_noise,
+            ))
+        self._ray_from, self._ray_to, self._cast_lidars = starts, ends, tuple(cast)
 
     def _set_up_gui(self) -> None:
         pybullet, client = self._bullet, self._client
@@ -520,13 +552,28 @@ class BulletSim:
     # ------------------------------------------------------------------ lidar
 
     def scan(self, pose: Pose2D | Sequence[float] | None = None, *, stamp: float | None = None) -> LaserScan:
-        """Cast one scan with the base at ``pose`` (the current pose by default), without advancing time.
+        """Cast one scan of the main lidar with the base at ``pose`` (the current pose by default).
 
-        Noise and dropout are drawn from the simulator's generator, as in :meth:`step`.
+        Time does not advance. Every lidar is cast and draws its noise (see :meth:`scans`);
+        the main lidar's scan is returned.
 
         Args:
             pose: the base pose [m, m, rad].
             stamp: acquisition time to put in the scan [s]; the current time by default
+                (``None`` before the first reset).
+        """
+        return self.scans(pose, stamp=stamp)[0]
+
+    def scans(self, pose: Pose2D | Sequence[float] | None = None, *,
+              stamp: float | None = None) -> tuple[LaserScan, ...]:
+        """Cast one scan of every lidar of ``robot.lidars`` (main first) with the base at ``pose``.
+
+        Time does not advance. Noise and dropout are drawn from the simulator's generators,
+        as in :meth:`step`.
+
+        Args:
+            pose: the base pose [m, m, rad]; the current pose by default.
+            stamp: acquisition time to put in the scans [s]; the current time by default
                 (``None`` before the first reset).
         """
         self._check_open()
@@ -536,10 +583,8 @@ class BulletSim:
             stamp = self._state.time
         return self._cast(Pose2D(*pose), stamp)
 
-    def _cast(self, pose: Pose2D, stamp: float | None, clearance: float | None = None) -> LaserScan:
-        """One ``rayTestBatch`` from the true mount with the base at ``pose``; ``clearance`` at ``pose`` if known."""
-        lidar = self.robot.lidar
-        n = lidar.n_beams
+    def _cast(self, pose: Pose2D, stamp: float | None, clearance: float | None = None) -> tuple[LaserScan, ...]:
+        """One ray batch from every true mount with the base at ``pose``; ``clearance`` at ``pose`` if known."""
         half_yaw = 0.5 * pose.yaw
         pybullet = self._bullet
         time_of_cast = 0.0 if stamp is None else stamp
@@ -548,25 +593,37 @@ class BulletSim:
         pybullet.resetBasePositionAndOrientation(self._robot_body, [pose.x, pose.y, 0.0],
                                                  [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
                                                  physicsClientId=self._client)
-        hits = pybullet.rayTestBatch(self._ray_from, self._ray_to, numThreads=self.config.num_threads,
-                                     parentObjectUniqueId=self._robot_body, physicsClientId=self._client)
-        fraction = np.fromiter(map(_HIT_FRACTION, hits), dtype=float, count=n)
+        hits: list[Any] = []
+        for first in range(0, len(self._ray_from), _RAY_BATCH_LIMIT):
+            last = first + _RAY_BATCH_LIMIT
+            hits += pybullet.rayTestBatch(self._ray_from[first:last], self._ray_to[first:last],
+                                          numThreads=self.config.num_threads,
+                                          parentObjectUniqueId=self._robot_body, physicsClientId=self._client)
+        fractions = np.fromiter(map(_HIT_FRACTION, hits), dtype=float, count=len(self._ray_from))
+        return tuple(self._readings(cast, rng, fractions[cast.beams], pose, stamp, clearance)
+                     for cast, rng in zip(self._cast_lidars, self._sensor_rngs, strict=True))
+
+    def _readings(self, cast: _CastLidar, rng: np.random.Generator, fraction: np.ndarray, pose: Pose2D,
+                  stamp: float | None, clearance: float | None) -> LaserScan:
+        """One lidar's scan from its rays' hit fractions: sensor-inside, noise, range limits, dropout."""
+        lidar = cast.lidar
+        n = lidar.n_beams
         ranges = np.where(fraction < 1.0, fraction * lidar.range_max, math.inf)
-        if self._sensor_inside(pose, clearance, time_of_cast):
+        if self._sensor_inside(cast, pose, clearance, 0.0 if stamp is None else stamp):
             ranges[:] = -math.inf   # rays from inside a closed mesh would report its far side
-        if self._range_noise > 0.0:
-            ranges += self._range_noise * self._sensor_rng.standard_normal(n)   # +-inf stay +-inf
+        if cast.range_noise > 0.0:
+            ranges += cast.range_noise * rng.standard_normal(n)   # +-inf stay +-inf
         ranges[ranges > lidar.range_max] = math.inf
         ranges[ranges < lidar.range_min] = -math.inf
         if self.config.dropout > 0.0:
-            ranges[self._sensor_rng.random(n) < self.config.dropout] = math.nan
+            ranges[rng.random(n) < self.config.dropout] = math.nan
         return lidar.scan(ranges, stamp=stamp)
 
-    def _sensor_inside(self, pose: Pose2D, clearance: float | None, time: float) -> bool:
+    def _sensor_inside(self, cast: _CastLidar, pose: Pose2D, clearance: float | None, time: float) -> bool:
         """Whether the lidar sits inside an obstacle at ``time`` (only possible when the body overlaps one)."""
-        if clearance is not None and clearance >= self._mount_offset - self.robot.radius:
+        if clearance is not None and clearance >= cast.mount_offset - self.robot.radius:
             return False
-        sensor = pose.compose(self._true_mount)
+        sensor = pose.compose(cast.true_mount)
         return self._truth((sensor.x, sensor.y), time) + self.robot.radius < 0.0
 
     # ------------------------------------------------------------------ episode
@@ -596,10 +653,10 @@ class BulletSim:
         self._commands = collections.deque([np.zeros(2)] * config.command_latency)
         clearance = self._truth(pose, 0.0)
         self._first_collision = 0.0 if clearance < 0.0 else None
-        scan = self._cast(pose, 0.0, clearance)
-        self._scans = collections.deque([scan] * (config.scan_latency + 1), maxlen=config.scan_latency + 1)
+        scans = self._cast(pose, 0.0, clearance)
+        self._scans = collections.deque([scans] * (config.scan_latency + 1), maxlen=config.scan_latency + 1)
         self._wall_start = time.perf_counter()
-        self._state = self._make_state(scan, clearance, clearance, np.zeros(2))
+        self._state = self._make_state(scans, clearance, clearance, np.zeros(2))
         return self._state
 
     def step(self, u: Any) -> SimState:
@@ -649,7 +706,8 @@ class BulletSim:
         self._state = self._make_state(self._scans[0], clearance, min_clearance, command)
         return self._state
 
-    def _make_state(self, scan: LaserScan, clearance: float, min_clearance: float, command: np.ndarray) -> SimState:
+    def _make_state(self, scans: tuple[LaserScan, ...], clearance: float, min_clearance: float,
+                    command: np.ndarray) -> SimState:
         velocity = np.array(self._velocity, dtype=float)
         velocity.flags.writeable = False
         command = np.array(command, dtype=float)
@@ -658,13 +716,14 @@ class BulletSim:
             time=self._physics_steps * self.config.physics_dt,
             pose=self._pose,
             velocity=velocity,
-            scan=scan,
+            scan=scans[0],
             clearance=clearance,
             collided=clearance < 0.0,
             first_collision_time=self._first_collision,
             min_clearance=min_clearance,
             command=command,
             steps=self._steps,
+            scans=scans,
         )
 
     # ------------------------------------------------------------------ lifetime
