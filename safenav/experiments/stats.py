@@ -15,7 +15,11 @@ if TYPE_CHECKING:
     from safenav.episode import EpisodeMetrics
     from safenav.experiments.runner import EpisodeOutcome
 
-__all__ = ["cell_record", "cell_records", "wilson_interval"]
+__all__ = ["DEADLOCK_LIMIT", "cell_record", "cell_records", "wilson_interval"]
+
+DEADLOCK_LIMIT = 5.0
+"""An episode counts as deadlocked when its longest deadlock lasts longer than this [s]
+(:attr:`~safenav.episode.EpisodeMetrics.longest_deadlock`, see :func:`safenav.episode.liveness`)."""
 
 Z95 = 1.959963984540054
 """The 97.5 % quantile of the standard normal distribution."""
@@ -76,6 +80,15 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         * ``stuck_time``: mean time the nominal wanted to move and the robot did not [s], and
           ``stuck_fraction`` of the episode time;
         * ``fallbacks``: periods in which the filter braked because its optimiser failed (total);
+        * ``deadlocked_episodes``, ``deadlock_rate`` and its Wilson 95 % interval ``deadlock_rate_ci``:
+          episodes whose longest deadlock lasted longer than :data:`DEADLOCK_LIMIT`;
+          ``deadlock_time``: mean total deadlocked time per episode [s] (deadlocks of at least the
+          episode's ``deadlock_time``, see :func:`safenav.episode.liveness`), ``deadlock_time_total``
+          summed over the episodes [s]; ``deadlocked_seeds``;
+        * ``escapes_started``, ``escapes_succeeded``: summed over the episodes; ``escape_time``: mean
+          time an escape drove per episode [s];
+        * ``omega_chatter``: mean over the episodes of the mean ``|Δomega| / dt`` [rad/s^2];
+          ``v_reversals``: mean over the episodes of the sign changes of ``v`` per second [1/s];
         * ``filter_p50_us``, ``filter_p99_us``, ``filter_calls``: every filter call of the cell pooled [us];
         * ``episode_wall_s``: mean wall-clock time of an episode [s] (``None`` without ``wall_times``);
         * ``statuses``: filter statuses summed over the episodes; ``collided_seeds``.
@@ -94,6 +107,7 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
     has_goal = metrics[0].goal_reached is not None
     times = [m.time_to_goal for m in metrics if m.goal_reached]
     filter_times = np.concatenate([m.filter_times for m in metrics])
+    deadlocked = [m.longest_deadlock > DEADLOCK_LIMIT for m in metrics]
     statuses: dict[str, int] = {}
     for m in metrics:
         for status, count in m.statuses.items():
@@ -123,10 +137,21 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         "filter_p50_us": _finite_or_none(float(np.median(filter_times)) * 1e6) if filter_times.size else None,
         "filter_p99_us": _finite_or_none(float(np.percentile(filter_times, 99)) * 1e6) if filter_times.size
         else None,
+        "deadlocked_episodes": sum(deadlocked),
+        "deadlock_rate": sum(deadlocked) / episodes,
+        "deadlock_rate_ci": list(wilson_interval(sum(deadlocked), episodes)),
+        "deadlock_time": float(np.mean([m.deadlock_time for m in metrics])),
+        "deadlock_time_total": float(np.sum([m.deadlock_time for m in metrics])),
+        "escapes_started": int(sum(m.escapes_started for m in metrics)),
+        "escapes_succeeded": int(sum(m.escapes_succeeded for m in metrics)),
+        "escape_time": float(np.mean([m.escape_time for m in metrics])),
+        "omega_chatter": float(np.mean([m.omega_chatter for m in metrics])),
+        "v_reversals": float(np.mean([m.v_reversals for m in metrics])),
         "episode_wall_s": float(np.mean(wall_times)) if wall_times else None,
         "statuses": dict(sorted(statuses.items())),
         "seeds": seeds,
         "collided_seeds": [seed for seed, hit in zip(seeds, collided, strict=True) if hit],
+        "deadlocked_seeds": [seed for seed, hit in zip(seeds, deadlocked, strict=True) if hit],
     }
 
 
