@@ -267,15 +267,35 @@ def _bounds(width: float, height: float, margin: float = 0.3) -> tuple[float, fl
     return (-hx, -hy, hx, hy)
 
 
-def _seeded_pose(rng: np.random.Generator, x_range: tuple[float, float], y_range: tuple[float, float]) -> Pose2D:
-    """A start drawn uniformly in the rectangle ``x_range x y_range`` [m] with a uniform heading [rad]."""
-    return Pose2D(float(rng.uniform(*x_range)), float(rng.uniform(*y_range)), float(rng.uniform(-math.pi, math.pi)))
+Box2 = tuple[tuple[float, float], tuple[float, float]]
+"""A rectangle as its ``x`` range and its ``y`` range [m]."""
 
 
-def _seeded_point(rng: np.random.Generator, x_range: tuple[float, float],
-                  y_range: tuple[float, float]) -> tuple[float, float]:
-    """A point drawn uniformly in the rectangle ``x_range x y_range`` [m]."""
-    return (float(rng.uniform(*x_range)), float(rng.uniform(*y_range)))
+def _room_arguments(owner: str, seed: int, robot: RobotSpec, size: tuple[float, float],
+                    smallest: tuple[float, float]) -> tuple[int, RobotSpec, float, float]:
+    """The checked seed, robot and room size ``(w, h)`` of a room builder; at least ``smallest`` [m]."""
+    seed = integer(f"{owner}: seed", seed, low=0)
+    robot = _robot(owner, robot)
+    width, height = pair(f"{owner}: size", size, low=0.0, low_open=True)
+    if width < smallest[0] or height < smallest[1]:
+        raise InvalidConfig(f"{owner}: size must be at least ({smallest[0]:g}, {smallest[1]:g}) m, got {size!r}")
+    return seed, robot, width, height
+
+
+def _seeded_room(name: str, seed: int, inside: tuple[Wall, ...], size: tuple[float, float], *, start_box: Box2,
+                 goal_box: Box2) -> World:
+    """A walled room of free interior ``size`` holding ``inside``, with a start and a goal drawn from the seed.
+
+    From the ``world`` stream of ``seed``: the start's ``x`` and ``y`` uniform in ``start_box`` and
+    its heading uniform in ``[-pi, pi)``, then the goal's ``x`` and ``y`` uniform in ``goal_box``.
+    """
+    rng = generator(seed, "world")
+    (x_low, x_high), (y_low, y_high) = start_box
+    start = Pose2D(float(rng.uniform(x_low, x_high)), float(rng.uniform(y_low, y_high)),
+                   float(rng.uniform(-math.pi, math.pi)))
+    (x_low, x_high), (y_low, y_high) = goal_box
+    goal = (float(rng.uniform(x_low, x_high)), float(rng.uniform(y_low, y_high)))
+    return World(name, _arena(*size) + inside, start=start, goal=goal, bounds=_bounds(*size))
 
 
 def door_world(seed: int, robot: RobotSpec, door_width: float, *, size: tuple[float, float] = (6.0, 5.0)) -> World:
@@ -302,23 +322,18 @@ def door_world(seed: int, robot: RobotSpec, door_width: float, *, size: tuple[fl
         The world, named ``"door-<seed>"``.
 
     Raises:
-        InvalidConfig: an argument out of range (the message names it and what was expected).
+        InvalidConfig: a bad seed, robot or size, or a door the body does not fit through or
+            wider than the room allows (the message names the value and what was expected).
     """
-    seed = integer("door_world: seed", seed, low=0)
-    robot = _robot("door_world", robot)
-    width, height = pair("door_world: size", size, low=0.0, low_open=True)
-    if width < 4.0 or height < 2.0:
-        raise InvalidConfig(f"door_world: size must be at least (4, 2) m, got {size!r}")
+    seed, robot, width, height = _room_arguments("door_world", seed, robot, size, (4.0, 2.0))
     door_width = number("door_world: door_width", door_width, low=2.0 * robot.radius, high=height - 1.0,
                         low_open=True)
     hy, half_wall = 0.5 * height, 0.5 * WALL_THICKNESS
     jamb = 0.5 * door_width + half_wall   # a wall's end is squared off half a thickness past its end point
     divider = (Wall((0.0, -hy - half_wall), (0.0, -jamb)), Wall((0.0, jamb), (0.0, hy + half_wall)))
-    rng = generator(seed, "world")
-    start = _seeded_pose(rng, (-0.5 * width + 0.7, -1.0), (-0.8, 0.8))
-    goal = _seeded_point(rng, (1.0, 0.5 * width - 0.7), (-0.8, 0.8))
-    return World(f"door-{seed}", _arena(width, height) + divider, start=start, goal=goal,
-                 bounds=_bounds(width, height))
+    return _seeded_room(f"door-{seed}", seed, divider, (width, height), start_box=((-0.5 * width + 0.7, -1.0),
+                                                                                 (-0.8, 0.8)),
+                        goal_box=((1.0, 0.5 * width - 0.7), (-0.8, 0.8)))
 
 
 def dead_end_world(seed: int, robot: RobotSpec, *, mouth_width: float | None = None, depth: float = 1.2,
@@ -349,11 +364,7 @@ def dead_end_world(seed: int, robot: RobotSpec, *, mouth_width: float | None = N
     Raises:
         InvalidConfig: an argument out of range (the message names it and what was expected).
     """
-    seed = integer("dead_end_world: seed", seed, low=0)
-    robot = _robot("dead_end_world", robot)
-    width, height = pair("dead_end_world: size", size, low=0.0, low_open=True)
-    if width < 6.0 or height < 4.0:
-        raise InvalidConfig(f"dead_end_world: size must be at least (6, 4) m, got {size!r}")
+    seed, robot, width, height = _room_arguments("dead_end_world", seed, robot, size, (6.0, 4.0))
     mouth_width = 4.0 * robot.radius + 0.4 if mouth_width is None else mouth_width
     mouth_width = number("dead_end_world: mouth_width", mouth_width, low=2.0 * robot.radius,
                          high=height - 4.0 * robot.radius - 1.0, low_open=True)
@@ -361,11 +372,9 @@ def dead_end_world(seed: int, robot: RobotSpec, *, mouth_width: float | None = N
     arm = 0.5 * (mouth_width + WALL_THICKNESS)   # centre lines of the arms
     back, mouth = 0.5 * (depth + WALL_THICKNESS), -0.5 * (depth - WALL_THICKNESS)   # inside: depth long
     trap = room((mouth, arm), (back, arm), (back, -arm), (mouth, -arm), closed=False)
-    rng = generator(seed, "world")
-    start = _seeded_pose(rng, (-0.5 * width + 0.8, -0.5 * width + 2.0), (-0.3, 0.3))
-    goal = _seeded_point(rng, (0.5 * width - 2.0, 0.5 * width - 0.8), (-0.3, 0.3))
-    return World(f"dead-end-{seed}", _arena(width, height) + trap, start=start, goal=goal,
-                 bounds=_bounds(width, height))
+    return _seeded_room(f"dead-end-{seed}", seed, trap, (width, height),
+                        start_box=((-0.5 * width + 0.8, -0.5 * width + 2.0), (-0.3, 0.3)),
+                        goal_box=((0.5 * width - 2.0, 0.5 * width - 0.8), (-0.3, 0.3)))
 
 
 def _robot(owner: str, robot: RobotSpec) -> RobotSpec:
