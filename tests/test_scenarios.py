@@ -2,7 +2,9 @@
 
 The closed-loop matrix is the safety claim measured end to end: each tutorial controller
 with its robot and world (and the buggy stop-at-wall), RandomWalk in clutter and GoToGoal
-through clutter on each preset, 20 seeds each (``-m slow``); CI runs two seeds of every cell.
+through clutter, through a door and round a dead end on each preset, 20 seeds each (``-m slow``),
+with the CBF and the MPC, plain and with the deadlock escape; CI runs two seeds of every cell of
+the plain filters and the first seed of every go-to-goal cell of the escape rows.
 """
 
 from __future__ import annotations
@@ -115,20 +117,31 @@ def test_dead_end_scenario_puts_a_trap_between_start_and_goal(robot):
     assert len({task.world(seed).goal for seed in range(5)}) == 5
 
 
-def closed_loop_cases(filters: tuple[str, ...]) -> list:
+def closed_loop_cases(filters: tuple[str, ...], ci_cells: list | None = None, ci_seeds: int = 2) -> list:
+    """Every cell with each filter on 20 seeds; CI (not slow) runs ``ci_seeds`` of ``ci_cells`` (all by default)."""
     cases = []
     for filter_name in filters:
         for name, policy in CELLS:
             for seed in range(20):
-                marks = [pytest.mark.sim] + ([pytest.mark.slow] if seed >= 2 else [])
+                in_ci = seed < ci_seeds and (ci_cells is None or (name, policy) in ci_cells)
+                marks = [pytest.mark.sim] + ([] if in_ci else [pytest.mark.slow])
                 cases.append(pytest.param(name, policy, filter_name, seed, marks=marks,
                                           id=f"{filter_name}-{name}-{policy}-{seed}"))
     return cases
 
 
-@pytest.mark.parametrize(("name", "policy", "filter_name", "seed"), closed_loop_cases(("cbf", "mpc")))
+GOAL_CELLS = [(name, policy) for name, policy in CELLS if scenario(name).has_goal]
+"""The go-to-goal cells (clutter, door, dead end), where the escape drives: CI runs the escape rows there."""
+
+
+@pytest.mark.parametrize(("name", "policy", "filter_name", "seed"),
+                         closed_loop_cases(("cbf", "mpc")) +
+                         closed_loop_cases(("cbf+escape", "mpc+escape"), ci_cells=GOAL_CELLS, ci_seeds=1))
 def test_filtered_robot_never_collides_and_keeps_its_margin(name, policy, filter_name, seed):
-    """Acceleration limits are active (the simulator ramps) and the filter gets the odometry velocity."""
+    """Acceleration limits are active (the simulator ramps) and the filter gets the odometry velocity.
+
+    The escape rows too: the escape's commands go through the same filter, so they keep its margin.
+    """
     task = scenario(name)
     robot = task.robot
     world = task.world(seed)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from safenav.episode import EpisodeMetrics
     from safenav.experiments.runner import EpisodeOutcome
 
-__all__ = ["DEADLOCK_LIMIT", "cell_record", "cell_records", "wilson_interval"]
+__all__ = ["DEADLOCK_LIMIT", "cell_record", "cell_records", "pooled_records", "wilson_interval"]
 
 DEADLOCK_LIMIT = 5.0
 """An episode counts as deadlocked when its longest deadlock lasts longer than this [s]
@@ -166,3 +166,50 @@ def cell_records(outcomes: Sequence[EpisodeOutcome]) -> list[dict[str, Any]]:
         records.append(cell_record(cell, group[0].robot, [o.metrics for o in group], [o.spec.seed for o in group],
                                    [o.wall_time for o in group]))
     return records
+
+
+_POOLED_MEANS = ("intervention", "stuck_time", "deadlock_time", "escape_time", "omega_chatter", "v_reversals")
+"""Per-episode means of a cell record that pool as means weighted by the cells' episodes."""
+
+_POOLED_SUMS = ("episodes", "collisions", "deadlocked_episodes", "escapes_started", "escapes_succeeded", "fallbacks")
+"""Counts of a cell record that pool as sums."""
+
+
+def pooled_records(records: Sequence[dict[str, Any]],
+                   key: Callable[[dict[str, Any]], tuple[str, ...]]) -> list[dict[str, Any]]:
+    """Cell records pooled into groups: the episodes of every cell of a group taken together.
+
+    Args:
+        records: cell records from :func:`cell_records`.
+        key: the group of a record, e.g. ``lambda r: (r["filter"],)``.
+
+    Returns:
+        One record per group, groups in order of first appearance: ``group`` (the key), ``cells``,
+        the sums of ``episodes``, ``collisions``, ``deadlocked_episodes``, ``escapes_started``,
+        ``escapes_succeeded`` and ``fallbacks``; the episode-weighted means of ``intervention``,
+        ``stuck_time``, ``deadlock_time``, ``escape_time``, ``omega_chatter`` and ``v_reversals``;
+        ``collision_rate``, ``deadlock_rate`` and their Wilson 95 % intervals; ``goal_reached``
+        and ``goal_episodes`` over the cells that have a goal (``None`` when none has);
+        ``collided`` and ``deadlocked``: ``(scenario, seed)`` of every such episode.
+    """
+    groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
+    for record in records:
+        groups.setdefault(tuple(key(record)), []).append(record)
+    pooled = []
+    for group, members in groups.items():
+        weights = np.array([member["episodes"] for member in members], dtype=float)
+        result: dict[str, Any] = {"group": list(group), "cells": len(members)}
+        result.update({name: int(sum(member[name] for member in members)) for name in _POOLED_SUMS})
+        result.update({name: float(np.average([member[name] for member in members], weights=weights))
+                       for name in _POOLED_MEANS})
+        for rate, count in (("collision_rate", "collisions"), ("deadlock_rate", "deadlocked_episodes")):
+            result[rate] = result[count] / result["episodes"]
+            result[f"{rate}_ci"] = list(wilson_interval(result[count], result["episodes"]))
+        goals = [member for member in members if member["goal_success"] is not None]
+        result["goal_reached"] = sum(member["goal_reached"] for member in goals) if goals else None
+        result["goal_episodes"] = sum(member["episodes"] for member in goals) if goals else None
+        result["collided"] = [[member["scenario"], seed] for member in members for seed in member["collided_seeds"]]
+        result["deadlocked"] = [[member["scenario"], seed] for member in members
+                                for seed in member["deadlocked_seeds"]]
+        pooled.append(result)
+    return pooled

@@ -8,7 +8,8 @@ from typing import Any
 
 from safenav._checks import choice
 
-__all__ = ["FILTER_LABELS", "markdown", "outcome_table", "timing_table"]
+__all__ = ["FILTER_LABELS", "LIVENESS_COLUMNS", "SAFETY_COLUMNS", "markdown", "outcome_table", "summary_table",
+           "timing_table"]
 
 FILTER_LABELS: Mapping[str, str] = MappingProxyType(
     {"none": "naive (no filter)", "zones": "zones", "cbf": "CBF-QP", "mpc": "MPC",
@@ -110,3 +111,32 @@ def timing_table(records: Sequence[dict[str, Any]]) -> str:
             for record in records]
     return markdown(["scenario", "policy", "filter", "filter calls", "filter p50 [us]", "filter p99 [us]",
                      "episode [s]"], rows)
+
+
+SAFETY_COLUMNS = ("scenario", "robot", "policy", "filter", "episodes", "collisions", "rate [95% CI]",
+                  "clearance min / p5 / median [m]", "intervention", "progress [m]", "fallbacks")
+"""The columns of :func:`outcome_table` about safety and intervention."""
+
+LIVENESS_COLUMNS = ("scenario", "policy", "filter", "goal reached", "stuck [s]", "deadlocks > 5 s", "deadlocked [s]",
+                    "escapes ok/started", "chatter [rad/s²]", "v reversals [1/s]")
+"""The columns of :func:`outcome_table` about progress: goals, stuck and deadlocked time, escapes, chatter."""
+
+
+def summary_table(pooled: Sequence[dict[str, Any]], group_names: Sequence[str]) -> str:
+    """Pooled records (:func:`~safenav.experiments.stats.pooled_records`) as markdown, one row per group.
+
+    Args:
+        pooled: the pooled records.
+        group_names: the header of each part of the group key (``["scenarios", "filter"]``).
+    """
+    rows = []
+    for record in pooled:
+        goals = "–" if record["goal_reached"] is None else f"{record['goal_reached']}/{record['goal_episodes']}"
+        rows.append([*record["group"], record["episodes"], record["collisions"], goals,
+                     f"{record['stuck_time']:.1f}", f"{record['deadlocked_episodes']}/{record['episodes']}",
+                     f"{record['deadlock_time']:.1f}", f"{record['escapes_succeeded']}/{record['escapes_started']}",
+                     f"{record['omega_chatter']:.2f}", f"{record['v_reversals']:.2f}",
+                     f"{record['intervention']:.2f}"])
+    return markdown([*group_names, "episodes", "collisions", "goals reached", "mean stuck [s]", "deadlocks > 5 s",
+                     "deadlocked [s]", "escapes ok/started", "chatter [rad/s²]", "v reversals [1/s]",
+                     "intervention"], rows)
