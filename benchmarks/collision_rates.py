@@ -1,22 +1,28 @@
-"""Collision rates: every scenario x nominal policy x safety filter, N seeded episodes per cell.
+"""Collision rates and liveness: every scenario x nominal policy x safety filter, N seeded episodes per cell.
 
 The matrix is the scenario registry (``safenav.scenarios``): the three tutorial scenarios
 (each with its own robot and world, the first also with the published buggy controller),
-random cluttered arenas for every preset (random walk and the robot's tutorial controller)
-and go-to-goal tasks through clutter; each (scenario, policy) pair runs with every filter
-(none, zones, cbf, mpc) on seeds 0..N-1. A seed draws the world and the start, so every
-filter of a row faces the same episodes.
+random cluttered arenas for every preset (random walk and the robot's tutorial controller),
+go-to-goal tasks through clutter, through a door 2 (R + margin) + 5 cm wide, and round a
+U-shaped dead end; each (scenario, policy) pair runs with every filter, each filter next to
+itself wrapped in the deadlock escape (none, zones, zones+escape, cbf, cbf+escape, mpc,
+mpc+escape) on seeds 0..N-1. A seed draws the world and the start, so every filter of a row
+faces the same episodes.
 
 Per cell: episodes, collisions, collision rate with a 95 % Wilson interval, minimum body
 clearance (min, 5th percentile, median over the episodes), mean intervention ||u - u_nom||,
 distance travelled or goal progress, goal success and time to goal, stuck time (the nominal
-wants to move and the robot does not), fallbacks, and the filter's call time p50/p99 pooled
-over the cell. The first table is the same for the same seeds whatever the number of
-workers; the second holds the wall-clock filter times.
+wants to move and the robot does not), fallbacks, the filter's call time p50/p99 pooled over
+the cell, and liveness (``safenav.episode.liveness``): episodes with a deadlock longer than 5 s
+(the commands keep under a tenth of the nominal's progress; a failed escape counts), mean
+deadlocked time, escapes succeeded / started, chatter (mean |Δω|/dt of the commands) and sign
+changes of v per second. Printed: the safety table, the liveness table, a summary per kind of
+scenario and filter, and the wall-clock times. Every table but the last is the same for the
+same seeds whatever the number of workers.
 
 Run ``python -m benchmarks.collision_rates --help`` (or ``safenav bench collisions --help``)::
 
-    python -m benchmarks.collision_rates --quick                 # the CI smoke subset, under 3 minutes
+    python -m benchmarks.collision_rates --quick                 # the CI smoke subset
     python -m benchmarks.collision_rates --json rates.json --plots plots/   # the full sweep
 """
 
@@ -47,13 +53,17 @@ from safenav.experiments import (
     run_specs,
     timing_table,
 )
+from safenav.experiments.stats import pooled_records
+from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
 from safenav.filters import FILTER_NAMES, FILTERS
 from safenav.scenarios import scenario
 from safenav.sim_bullet import SimConfig
 
 FULL_SEEDS = 20
-"""Seeds per cell of the default sweep: 13 (scenario, policy) pairs x 4 filters x 20 = 1040 episodes, the
-fewest above 1000; sized for the 15-minute budget on the 2-core development machine."""
+"""Seeds per cell of the default sweep: 19 (scenario, policy) pairs x 7 filters x 20 = 2660 episodes."""
+
+DEFAULT_FILTERS = tuple(name for base in FILTERS for name in (base, f"{base}+escape") if name in FILTER_NAMES)
+"""The filters of the default sweep: each filter, then the same filter with the deadlock escape."""
 
 QUICK: Mapping[str, Any] = MappingProxyType(
     {"scenarios": ("stop_at_wall", "clutter_m2wr", "goal_rosbot"), "seeds": 3, "duration": 10.0})
@@ -73,7 +83,8 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     parser.add_argument("--policies", type=names, default=None, metavar="A,B",
                         help="comma-separated nominal policies (default: every scenario's own)")
     parser.add_argument("--filters", type=names, default=None, metavar="A,B",
-                        help=f"comma-separated filters of {','.join(FILTER_NAMES)} (default: {','.join(FILTERS)})")
+                        help=f"comma-separated filters of {','.join(FILTER_NAMES)} (default: all, each next to "
+                             f"itself with the escape: {','.join(DEFAULT_FILTERS)})")
     parser.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
     parser.add_argument("--workers", metavar="N", type=argument_type(integer, low=1), default=os.cpu_count() or 1,
@@ -99,7 +110,7 @@ def _sweep(args: argparse.Namespace) -> int:
     seeds = args.seeds or (QUICK["seeds"] if args.quick else FULL_SEEDS)
     duration = args.duration or (QUICK["duration"] if args.quick else None)
     scenarios = args.scenarios or (list(QUICK["scenarios"]) if args.quick else None)
-    cells = matrix(scenarios, args.policies, args.filters)
+    cells = matrix(scenarios, args.policies, args.filters or list(DEFAULT_FILTERS))
     filters = list(dict.fromkeys(cell.filter for cell in cells))
     for what, path in (("--json", args.json), ("--csv", args.csv),
                        ("--plots", args.plots and Path(args.plots) / "collision_rates.png")):
@@ -113,9 +124,16 @@ def _sweep(args: argparse.Namespace) -> int:
     outcomes = run_specs(specs, args.workers, progress=not args.no_progress)
     wall_time = time.perf_counter() - start
     records = cell_records(outcomes)
+    summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))
 
     print()
-    print(outcome_table(records))
+    print(outcome_table(records, SAFETY_COLUMNS))
+    print()
+    print("liveness (deadlock: the commands keep under a tenth of the nominal's progress; see safenav.episode):")
+    print(outcome_table(records, LIVENESS_COLUMNS))
+    print()
+    print("per kind of scenario and filter (every preset and policy pooled):")
+    print(summary_table(summary, ["scenarios", "filter"]))
     print()
     print("wall-clock times (they vary with the machine and its load):")
     print(timing_table(records))
@@ -138,7 +156,7 @@ def _sweep(args: argparse.Namespace) -> int:
         "wall_time_s": wall_time,
         "episode_time_s": sum(o.wall_time for o in outcomes),
     }
-    write_json(args.json, {"cells": records, "config": config})
+    write_json(args.json, {"cells": records, "summary": summary, "config": config})
     if args.csv:
         write_csv(args.csv, records)
         print(f"wrote {args.csv}")
@@ -152,7 +170,8 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 _NESTED: Mapping[str, tuple[str, ...]] = MappingProxyType({
-    "collision_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"), "time_to_goal": ("mean", "median")})
+    "collision_rate_ci": ("low", "high"), "deadlock_rate_ci": ("low", "high"), "min_clearance": ("min", "p5", "median"),
+    "time_to_goal": ("mean", "median")})
 """Record fields that become several CSV columns."""
 
 

@@ -37,7 +37,11 @@ BENCHMARKS: Mapping[str, str] = MappingProxyType({
 module of a checkout's ``benchmarks/`` runs under its own name."""
 
 DEMO_FILTERS = ("none", "cbf", "mpc")
-"""What ``safenav demo`` compares."""
+"""What ``safenav demo`` compares in the three tutorials."""
+
+DEMO_ESCAPE_CASE = ("goal_rosbot", "go_to_goal", ("cbf", "cbf+escape", "mpc", "mpc+escape"))
+"""The demo's fourth panel, where the escape matters: (scenario, policy, filters), a go-to-goal
+through clutter, each filter plain and with the deadlock escape."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -66,33 +70,39 @@ def _demo(args: argparse.Namespace) -> int:
     from safenav.worlds import TUTORIALS
 
     out = writable_file("--out", args.out)
+    escape_name, escape_policy, escape_filters = DEMO_ESCAPE_CASE
     cases = [(tutorial.name, tutorial.published_policy) for tutorial in TUTORIALS.values()]
     seeds = list(range(args.seed, args.seed + args.seeds))
     cells = [Cell(name, policy, filter_name) for name, policy in cases for filter_name in DEMO_FILTERS]
+    cells += [Cell(escape_name, escape_policy, filter_name) for filter_name in escape_filters]
+    cases.append((escape_name, escape_policy))
     specs = episode_specs(cells, seeds, args.duration, record_seeds=[args.seed])
-    _say(f"safenav demo: the three tutorial robots, {_filter_names(DEMO_FILTERS)}; {len(specs)} episodes "
+    _say(f"safenav demo: the three tutorial robots, {_filter_names(DEMO_FILTERS)}; and the deadlock escape in "
+         f"{escape_name}, {_filter_names(escape_filters)}; {len(specs)} episodes "
          f"(seeds {seeds[0]}..{seeds[-1]}) on {args.workers or os.cpu_count()} processes")
     start = time.perf_counter()
     outcomes = run_specs(specs, args.workers, progress=not args.no_progress)
     records = cell_records(outcomes)
     _say("")
     _say(outcome_table(records, ["scenario", "robot", "policy", "filter", "episodes", "collisions",
-                                 "clearance min / p5 / median [m]", "progress [m]", "stuck [s]", "intervention"]))
+                                 "clearance min / p5 / median [m]", "progress [m]", "goal reached", "stuck [s]",
+                                 "escapes ok/started", "intervention"]))
     _say("")
     _say("clearance: smallest distance between the body and an obstacle (negative: overlap); progress: "
-         "distance travelled; stuck: time the nominal wanted to move and the robot did not.")
+         "distance travelled (towards the goal in goal tasks); stuck: time the nominal wanted to move and the "
+         "robot did not; escapes: deadlock escapes after which the nominal made progress again / started.")
     totals = []
-    for name in DEMO_FILTERS:
+    for name in dict.fromkeys((*DEMO_FILTERS, *escape_filters)):
         group = [r for r in records if r["filter"] == name]
         totals.append(f"{_filter_names([name])} {sum(r['collisions'] for r in group)} of "
                       f"{sum(r['episodes'] for r in group)}")
     _say("episodes that collided: " + ", ".join(totals))
     panels = [[o for o in outcomes if o.spec.seed == args.seed and (o.spec.scenario, o.spec.policy) == case]
               for case in cases]
-    figure = overlay_figure(panels, title=f"safenav demo: the same start (seed {args.seed}), "
-                                          f"{_filter_names(DEMO_FILTERS)}")
+    figure = overlay_figure(panels, title=f"safenav demo: the same start (seed {args.seed}); the tutorials "
+                                          f"{_filter_names(DEMO_FILTERS)}; {escape_name} with and without the escape")
     figure.savefig(out)
-    _say(f"wrote {out.resolve()} (trajectories of seed {args.seed}, one panel per tutorial) "
+    _say(f"wrote {out.resolve()} (trajectories of seed {args.seed}, one panel per tutorial and one for the escape) "
          f"in {time.perf_counter() - start:.0f} s")
     return 0
 
@@ -259,8 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="the three tutorials: naive vs CBF vs MPC, a table and a PNG",
         description="The three tutorial scenarios -- stop_at_wall with the published (buggy) controller, "
                     "obstacle_avoidance and wall_follower -- each run naive, CBF-filtered and MPC-filtered "
-                    "on the same seeds. Prints a table of collisions, clearance and progress, and writes one PNG "
-                    "with the trajectories of the first seed side by side.")
+                    "on the same seeds, and a go-to-goal through clutter (goal_rosbot) with each filter plain "
+                    "and with the deadlock escape. Prints a table of collisions, clearance, progress, goals and "
+                    "escapes, and writes one PNG with the trajectories of the first seed side by side.")
     demo.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                       help="first seed; its trajectories are drawn (default: 0)")
     demo.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=5,

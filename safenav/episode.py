@@ -17,6 +17,17 @@ truth::
     result = run_episode(tutorial_world("stop_at_wall"), robot, StopAtWall.tutorial_bug(),
                          CBFSafetyFilter(robot, 0.05), seed=0)
     result.metrics.collided, result.metrics.min_clearance
+
+Liveness (:func:`liveness`, in :class:`EpisodeMetrics`) is measured on the commands, with the
+filters' own stall test (:func:`safenav.filters.base.progress`): a period *stalls* when the
+nominal asks to move (more than ``STILL`` of a velocity limit) and the command sent keeps less
+than ``STALL_PROGRESS`` of the nominal's progress. For a plain filter a run of stalled periods
+is what the filter reports as :attr:`~safenav.filters.FilterResult.deadlock`, except that a
+blip of progress shorter than :data:`RESUME_TIME` does not end a deadlock here. With an
+escape wrapper (:class:`~safenav.filters.Escape`) a period in which the escape drives is not a
+stall while the escape works, but every period of an escape that fails (the nominal still
+stalls when it hands back, or it is still escaping when the episode ends short of the goal)
+is deadlocked, joined to the stall that started it.
 """
 
 from __future__ import annotations
@@ -32,6 +43,7 @@ import numpy as np
 from safenav._checks import boolean, positive
 from safenav.errors import InvalidConfig
 from safenav.filters import FilterResult, FilterStatus, SafetyFilter
+from safenav.filters.base import STALL_PROGRESS, STILL
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
 from safenav.robot import RobotSpec
@@ -39,7 +51,14 @@ from safenav.scan import LaserScan
 from safenav.sim_bullet import BulletSim, SimConfig, SimState
 from safenav.worlds import World
 
-__all__ = ["EpisodeConfig", "EpisodeMetrics", "EpisodeResult", "Trajectory", "run_episode"]
+__all__ = ["EpisodeConfig", "EpisodeMetrics", "EpisodeResult", "Liveness", "Trajectory", "liveness", "run_episode",
+           "stalled"]
+
+RESUME_TIME = 0.25
+"""Progress along the nominal must last this long to end a deadlock [s] (see :func:`liveness`)."""
+
+REVERSAL_DEADBAND = 1e-3
+"""Commanded speeds within this of zero [m/s] neither start nor end a sign of ``v`` (chatter count)."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +76,8 @@ class EpisodeConfig:
         stuck_speed: below this linear [m/s] and ``stuck_turn`` angular [rad/s] speed the
             robot counts as not moving.
         stuck_turn: see ``stuck_speed`` [rad/s].
+        deadlock_time: a run of stalled periods (see :func:`liveness`) counts as deadlocked
+            time once it lasts this long [s]: the filters' default ``deadlock_time``.
     """
 
     duration: float = 30.0
@@ -67,9 +88,10 @@ class EpisodeConfig:
     stop_at_goal: bool = True
     stuck_speed: float = 0.02
     stuck_turn: float = 0.05
+    deadlock_time: float = 1.5
 
     def __post_init__(self) -> None:
-        for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn"):
+        for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn", "deadlock_time"):
             object.__setattr__(self, name, positive(f"EpisodeConfig.{name}", getattr(self, name)))
         for name in ("stop_on_collision", "give_velocity", "stop_at_goal"):
             object.__setattr__(self, name, boolean(f"EpisodeConfig.{name}", getattr(self, name)))
@@ -106,6 +128,15 @@ class EpisodeMetrics:
         fallbacks: periods in which the filter braked because its optimiser failed.
         statuses: how many periods ended with each filter status.
         filter_times: wall time of every filter call [s] (empty without a filter).
+        deadlock_time: total length of the deadlocks that lasted at least
+            ``EpisodeConfig.deadlock_time`` [s] (see :func:`liveness`).
+        longest_deadlock: the longest deadlock [s].
+        escapes_started: escapes an escape wrapper started.
+        escapes_succeeded: escapes after which the nominal made progress again (or that reached the goal).
+        escape_time: time during which an escape replaced the nominal [s].
+        omega_chatter: mean ``|omega_k - omega_(k-1)| / dt`` of the commands sent [rad/s^2].
+        v_reversals: sign changes of the commanded ``v`` per second [1/s] (speeds within
+            :data:`REVERSAL_DEADBAND` of zero keep the previous sign).
     """
 
     steps: int
@@ -123,6 +154,13 @@ class EpisodeMetrics:
     fallbacks: int
     statuses: dict[str, int]
     filter_times: np.ndarray
+    deadlock_time: float = 0.0
+    longest_deadlock: float = 0.0
+    escapes_started: int = 0
+    escapes_succeeded: int = 0
+    escape_time: float = 0.0
+    omega_chatter: float = 0.0
+    v_reversals: float = 0.0
 
     @property
     def filter_p50_us(self) -> float:
@@ -133,6 +171,123 @@ class EpisodeMetrics:
     def filter_p99_us(self) -> float:
         """99th percentile of the filter call time [us] (NaN without a filter)."""
         return float(np.percentile(self.filter_times, 99) * 1e6) if self.filter_times.size else math.nan
+
+
+@dataclass(frozen=True)
+class Liveness:
+    """How an episode's commands kept the robot going (see :func:`liveness`).
+
+    Attributes:
+        deadlock_time: total length of the deadlocks of at least the minimum length [s].
+        longest_deadlock: the longest deadlock, whatever its length [s].
+        escapes_started: escapes started (runs of periods in which an escape drove).
+        escapes_succeeded: escapes whose first period after handing back made progress along
+            the nominal, or during which the goal was reached.
+        escape_time: time during which an escape drove [s].
+        omega_chatter: mean ``|omega_k - omega_(k-1)| / dt`` of the commands [rad/s^2].
+        v_reversals: sign changes of the commanded ``v`` per second [1/s].
+    """
+
+    deadlock_time: float
+    longest_deadlock: float
+    escapes_started: int
+    escapes_succeeded: int
+    escape_time: float
+    omega_chatter: float
+    v_reversals: float
+
+
+def stalled(nominal: np.ndarray, commands: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Which periods stall: the nominal asks to move and the command keeps too little of its progress.
+
+    The filters' own test (:meth:`SafetyFilter.filter` reports a deadlock after a run of them):
+    both commands as fractions of the velocity limits ``scale``, the nominal clipped to them;
+    the nominal asks to move when one of its parts exceeds ``STILL``; the command keeps
+    ``(u . n) / |n|^2`` of its progress, and less than ``STALL_PROGRESS`` stalls. A non-finite
+    nominal does not ask to move.
+
+    Args:
+        nominal: ``(T, 2)`` nominal commands ``(v [m/s], omega [rad/s])``.
+        commands: ``(T, 2)`` commands sent.
+        scale: the velocity limits ``(v_max [m/s], omega_max [rad/s])``.
+
+    Returns:
+        ``(T,)`` booleans.
+    """
+    scale = np.abs(np.asarray(scale, dtype=float))
+    nominal = np.asarray(nominal, dtype=float).reshape(-1, 2)
+    commands = np.asarray(commands, dtype=float).reshape(-1, 2)
+    finite = np.all(np.isfinite(nominal), axis=1)
+    wanted = np.clip(np.where(finite[:, None], nominal, 0.0), -scale, scale) / scale
+    size = np.sum(wanted * wanted, axis=1)
+    moves = finite & (np.max(np.abs(wanted), axis=1) > STILL)
+    kept = np.sum(commands / scale * wanted, axis=1) / np.where(size > 0.0, size, 1.0)
+    return moves & (kept < STALL_PROGRESS)
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """The ``[start, stop)`` index ranges of the runs of true values."""
+    padded = np.concatenate(([False], np.asarray(flags, dtype=bool), [False]))
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def liveness(nominal: np.ndarray, commands: np.ndarray, escaping: np.ndarray, dt: float, scale: np.ndarray, *,
+             goal_reached: bool = False, min_deadlock: float = 1.5, resume_time: float = RESUME_TIME) -> Liveness:
+    """Deadlocks, escapes and chatter of one episode, from its per-period commands.
+
+    * A period *stalls* by :func:`stalled` (the filters' own test).
+    * An *escape* is a run of periods in which an escape wrapper drove (``escaping``). It
+      *succeeds* when the first period after it does not stall (progress along the nominal
+      resumed), or when it was still running as the episode ended at the goal.
+    * A period is *deadlocked* when it stalls and no escape drives, or when it belongs to an
+      escape that failed; so is every period of a gap shorter than ``resume_time`` between two
+      deadlocked ones (progress has to last to end a deadlock: a nominal that flips between
+      turning and driving gets one period of progress now and then, which resets the filters'
+      own stall count, and its robot stays put). A *deadlock* is a run of deadlocked periods;
+      ``deadlock_time`` adds those that last at least ``min_deadlock``.
+    * Chatter: the mean ``|Δomega| / dt`` between consecutive commands, and the sign changes of
+      ``v`` per second, where ``|v| <=`` :data:`REVERSAL_DEADBAND` keeps the previous sign (so
+      forward, stop, reverse is one change).
+
+    Args:
+        nominal: ``(T, 2)`` nominal commands, one per period.
+        commands: ``(T, 2)`` commands sent.
+        escaping: ``(T,)`` whether an escape replaced the nominal in each period.
+        dt: the control period [s].
+        scale: the velocity limits ``(v_max [m/s], omega_max [rad/s])``.
+        goal_reached: whether the episode ended at its goal.
+        min_deadlock: shortest run of deadlocked periods that counts in ``deadlock_time`` [s].
+        resume_time: shortest run of progress that ends a deadlock [s].
+    """
+    commands = np.asarray(commands, dtype=float).reshape(-1, 2)
+    escaping = np.asarray(escaping, dtype=bool).reshape(-1)
+    steps = len(commands)
+    stall = stalled(nominal, commands, scale)
+    deadlocked = stall & ~escaping
+    escapes = _runs(escaping)
+    succeeded = 0
+    for start, stop in escapes:
+        if (stop < steps and not stall[stop]) or (stop == steps and goal_reached):
+            succeeded += 1
+        else:
+            deadlocked[start:stop] = True
+    shortest_resume = round(resume_time / dt)
+    for start, stop in _runs(~deadlocked):
+        if start > 0 and stop < steps and stop - start < shortest_resume:
+            deadlocked[start:stop] = True     # a blip of progress does not end a deadlock
+    lengths = np.array([stop - start for start, stop in _runs(deadlocked)], dtype=float) * dt
+    speed = commands[:, 0]
+    signs = np.sign(speed[np.abs(speed) > REVERSAL_DEADBAND])
+    return Liveness(
+        deadlock_time=float(lengths[lengths >= min_deadlock - 1e-9].sum()),
+        longest_deadlock=float(lengths.max()) if lengths.size else 0.0,
+        escapes_started=len(escapes),
+        escapes_succeeded=succeeded,
+        escape_time=float(np.count_nonzero(escaping)) * dt,
+        omega_chatter=float(np.mean(np.abs(np.diff(commands[:, 1])))) / dt if steps > 1 else 0.0,
+        v_reversals=float(np.count_nonzero(np.diff(signs))) / (steps * dt) if steps else 0.0,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,6 +374,7 @@ def run_episode(
         start_goal_distance = _distance(state.pose, goal) if goal is not None else None
         poses, velocities, times, clearances = [state.pose], [state.velocity], [state.time], [state.clearance]
         nominal_log, command_log, status_log, policy_log, scan_log = [], [], [], [], []
+        escaping_log: list[bool] = []
         filter_times: list[float] = []
         statuses: dict[str, int] = {}
         min_clearance = state.clearance
@@ -248,6 +404,7 @@ def run_episode(
             clearances.append(state.clearance)
             nominal_log.append(u_nom)
             command_log.append(np.asarray(u, dtype=float))
+            escaping_log.append(result is not None and bool(result.escape))
             status_log.append(status)
             policy_log.append(policy.state)
             if record_scans:
@@ -266,6 +423,9 @@ def run_episode(
     nominal = np.array(nominal_log, dtype=float).reshape(-1, 2)
     commands = np.array(command_log, dtype=float).reshape(-1, 2)
     intervention = np.hypot(*(commands - nominal).T) if len(commands) else np.zeros(0)
+    goal_reached = None if goal is None else time_to_goal is not None
+    lively = liveness(nominal, commands, np.array(escaping_log, dtype=bool), dt, robot.upper,
+                      goal_reached=bool(goal_reached), min_deadlock=config.deadlock_time)
     metrics = EpisodeMetrics(
         steps=len(command_log),
         time=float(times[-1]),
@@ -275,13 +435,14 @@ def run_episode(
         distance=float(np.sum(np.hypot(*np.diff(pose_array[:, :2], axis=0).T))),
         mean_intervention=float(intervention.mean()) if intervention.size else 0.0,
         max_intervention=float(intervention.max()) if intervention.size else 0.0,
-        goal_reached=None if goal is None else time_to_goal is not None,
+        goal_reached=goal_reached,
         time_to_goal=time_to_goal,
         goal_progress=None if goal is None else start_goal_distance - _distance(poses[-1], goal),
         stuck_time=stuck_steps * dt,
         fallbacks=statuses.get(FilterStatus.FALLBACK.value, 0),
         statuses=statuses,
         filter_times=np.array(filter_times, dtype=float),
+        **dataclasses.asdict(lively),
     )
     trajectory = None
     if record:

@@ -8,13 +8,24 @@ scenario                      robot       world                              pol
 ``wall_follower``             m2wr        tutorial 3: an L-shaped room       wall_follower
 ``clutter_<robot>``           each        random 10 x 10 m, 30 obstacles     random_walk, the robot's tutorial policy
 ``goal_<robot>``              each        random 10 x 10 m with a goal       go_to_goal
+``door_<robot>``              each        6 x 5 m room split by a wall with  go_to_goal
+                                          one door 2 (R + margin) + 5 cm
+                                          wide, the goal behind it
+``dead_end_<robot>``          each        8 x 6 m room, a U-shaped trap      go_to_goal
+                                          whose mouth faces the start, the
+                                          goal behind its closed end
 ============================  ==========  =================================  ============================
 
 :data:`SCENARIOS` is the one table, built once from the tutorials
 (:data:`~safenav.worlds.TUTORIALS`) and the presets; the command line, the experiments and
 the benchmarks read it. In the tutorial scenarios the seed jitters the start pose by a few
 centimetres and degrees, so seeds give different episodes of the same task; in the random
-ones it draws the world (:func:`~safenav.worlds.random_world`).
+ones it draws the world (:func:`~safenav.worlds.random_world`); in the door and dead-end
+ones it draws the start and the goal (:func:`~safenav.worlds.generator.door_world`,
+:func:`~safenav.worlds.generator.dead_end_world`). In the door scenarios R is the robot's
+circumscribed radius and margin the filters' default margin for it
+(:func:`~safenav.filters.defaults.default_margin`): the door is 5 cm wider than the
+narrowest one the filters let the body through (:func:`door_width`).
 """
 
 from __future__ import annotations
@@ -26,14 +37,25 @@ from types import MappingProxyType
 
 from safenav._checks import choice
 from safenav.errors import InvalidConfig
+from safenav.filters.defaults import default_margin
 from safenav.reference import POLICY_NAMES, Policy, make_policy
 from safenav.robot import PRESET_NAMES, RobotSpec, preset
 from safenav.worlds import TUTORIALS, World, random_world
+from safenav.worlds.generator import dead_end_world, door_world
 
-__all__ = ["RANDOM_WORLDS", "SCENARIOS", "SCENARIO_NAMES", "Scenario", "scenario", "scenario_for", "scenario_name"]
+__all__ = ["DOOR_SLACK", "GOAL_WORLDS", "RANDOM_WORLDS", "SCENARIOS", "SCENARIO_NAMES", "Scenario", "door_width",
+           "scenario", "scenario_for", "scenario_name"]
 
-RANDOM_WORLDS = ("clutter", "goal")
-"""Kinds of random world: ``clutter`` (30 obstacles) and ``goal`` (the same with a goal); one scenario per preset."""
+RANDOM_WORLDS = ("clutter", "goal", "door", "dead_end")
+"""Kinds of world drawn from the seed, one scenario per preset: ``clutter`` (30 obstacles), ``goal`` (the
+same with a goal), ``door`` (a wall with one door, the goal behind it), ``dead_end`` (a U-shaped trap, the
+goal behind it)."""
+
+GOAL_WORLDS = ("goal", "door", "dead_end")
+"""The kinds of world that have a goal."""
+
+DOOR_SLACK = 0.05
+"""How much wider the door of the door scenarios is than ``2 (R + margin)`` [m]."""
 
 RANDOM_OBSTACLES = 30
 """Obstacles in the random 10 x 10 m arenas."""
@@ -70,12 +92,16 @@ class Scenario:
     @property
     def has_goal(self) -> bool:
         """Whether its worlds have a goal (``go_to_goal`` needs one)."""
-        return self.world_kind == "goal"
+        return self.world_kind in GOAL_WORLDS
 
     def world(self, seed: int) -> World:
         """The world of episode ``seed`` (same seed, same world; see :mod:`safenav.seeding`)."""
         if self.world_kind in TUTORIALS:
             return TUTORIALS[self.world_kind].world(seed)
+        if self.world_kind == "door":
+            return door_world(seed, self.robot, door_width(self.robot))
+        if self.world_kind == "dead_end":
+            return dead_end_world(seed, self.robot)
         return random_world(seed, self.robot, n_obstacles=RANDOM_OBSTACLES, goal=self.has_goal)
 
     def policy(self, name: str, world: World, seed: int) -> Policy:
@@ -93,7 +119,7 @@ class Scenario:
 
 
 def _scenarios() -> dict[str, Scenario]:
-    """Every scenario, in table order: the tutorials, then clutter and goal for each preset."""
+    """Every scenario, in table order: the tutorials, then clutter, goal, door and dead end for each preset."""
     tutorial_policy = {tutorial.robot: tutorial.policy for tutorial in TUTORIALS.values()}
     items = [Scenario(tutorial.name, tutorial.robot, tuple(dict.fromkeys((tutorial.policy, tutorial.published_policy))),
                       tutorial.duration, tutorial.description, tutorial.name)
@@ -104,7 +130,24 @@ def _scenarios() -> dict[str, Scenario]:
     items += [Scenario(f"goal_{name}", name, ("go_to_goal",), 40.0,
                        f"{name} drives straight for a goal across a random cluttered arena", "goal")
               for name in PRESET_NAMES]
+    items += [Scenario(f"door_{name}", name, ("go_to_goal",), 40.0,
+                       f"{name} drives for a goal behind a wall with one door 2 (R + margin) + "
+                       f"{100 * DOOR_SLACK:g} cm wide", "door")
+              for name in PRESET_NAMES]
+    items += [Scenario(f"dead_end_{name}", name, ("go_to_goal",), 40.0,
+                       f"{name} drives for a goal behind a U-shaped trap whose mouth faces it", "dead_end")
+              for name in PRESET_NAMES]
     return {item.name: item for item in items}
+
+
+def door_width(robot: RobotSpec) -> float:
+    """The door of the door scenarios: ``2 (R + margin) + DOOR_SLACK`` [m].
+
+    ``R`` is the robot's circumscribed radius and ``margin`` the filters' default clearance
+    margin for it (:func:`~safenav.filters.defaults.default_margin`), so the door leaves
+    :data:`DOOR_SLACK` / 2 on either side of the widest body the filters let through.
+    """
+    return 2.0 * (robot.radius + default_margin(robot)) + DOOR_SLACK
 
 
 SCENARIOS: Mapping[str, Scenario] = MappingProxyType(_scenarios())

@@ -47,7 +47,8 @@ def test_every_command_has_help(argv, expected, capsys, monkeypatch):
 @pytest.mark.parametrize(("argv", "message"), [
     (["run", "--robot", "r2d2"], "unknown robot 'r2d2'; expected one of: m2wr, puzzlebot, rosbot"),
     (["run", "--world", "moon"],
-     "unknown world 'moon'; expected one of: clutter, goal, obstacle_avoidance, stop_at_wall, wall_follower"),
+     "unknown world 'moon'; expected one of: clutter, dead_end, door, goal, obstacle_avoidance, stop_at_wall, "
+     "wall_follower"),
     (["run", "--policy", "dance"], "unknown policy 'dance'; expected one of: go_to_goal, obstacle_avoidance, "
                                    "random_walk, stop_at_wall, stop_at_wall_buggy, wall_follower"),
     (["run", "--filter", "magic"], f"unknown filter 'magic'; expected one of: {KNOWN_FILTERS}"),
@@ -189,8 +190,10 @@ def test_short_demo_writes_its_figure(tmp_path, capsys):
     for name in ("stop_at_wall", "obstacle_avoidance", "wall_follower"):
         assert f"| {name} |" in stdout
     assert "| none |" in stdout and "| cbf |" in stdout
+    assert "| goal_rosbot | rosbot | go_to_goal | cbf+escape |" in stdout     # the escape's panel
+    assert "| goal_rosbot | rosbot | go_to_goal | mpc+escape |" in stdout
     assert f"wrote {out.resolve()}" in stdout
     with Image.open(out) as image:
         image.verify()
     with Image.open(out) as image:
-        assert image.width > 2 * image.height   # three panels side by side
+        assert image.width > 3 * image.height   # four panels side by side

@@ -1,4 +1,4 @@
-"""Closed-loop episodes in the simulator: determinism and metrics that can be checked by hand."""
+"""Closed-loop episodes in the simulator, and the liveness metrics on hand-computed command sequences."""
 
 from __future__ import annotations
 
@@ -8,13 +8,11 @@ import numpy as np
 import pytest
 
 from safenav import InvalidConfig, Pose2D, preset
-from safenav.episode import EpisodeConfig, run_episode
-from safenav.filters import CBFSafetyFilter, ZonesFilter
-from safenav.reference import Policy, RandomWalk
+from safenav.episode import RESUME_TIME, EpisodeConfig, liveness, run_episode, stalled
+from safenav.filters import CBFSafetyFilter, ZonesFilter, make_filter
+from safenav.reference import GoToGoal, Policy, RandomWalk
 from safenav.robot import Command
 from safenav.worlds import Wall, World, random_world, tutorial_world
-
-pytestmark = pytest.mark.sim
 
 
 class Constant(Policy):
@@ -27,6 +25,7 @@ class Constant(Policy):
         return self.command
 
 
+@pytest.mark.sim
 def test_same_seed_gives_identical_metrics():
     robot = preset("puzzlebot")
     world = random_world(4, robot)
@@ -41,6 +40,7 @@ def test_same_seed_gives_identical_metrics():
     assert other.distance != a.distance
 
 
+@pytest.mark.sim
 def test_driving_straight_into_a_wall_is_measured_right():
     robot = preset("rosbot")
     world = tutorial_world("stop_at_wall")          # wall face 3 m ahead of the start
@@ -60,6 +60,7 @@ def test_driving_straight_into_a_wall_is_measured_right():
     assert metrics.goal_reached is None and metrics.filter_times.size == 0
 
 
+@pytest.mark.sim
 def test_the_same_drive_with_the_cbf_filter_stops_short_and_counts_the_blocked_time():
     robot = preset("rosbot")
     filt = CBFSafetyFilter(robot, 0.05)
@@ -74,11 +75,10 @@ def test_the_same_drive_with_the_cbf_filter_stops_short_and_counts_the_blocked_t
     assert metrics.filter_p99_us >= metrics.filter_p50_us > 0
 
 
+@pytest.mark.sim
 def test_goal_reached_ends_the_episode_with_its_time():
     robot = preset("puzzlebot")
     world = World("open", (Wall((5.0, -3.0), (5.0, 3.0)),), start=Pose2D(0.0, 0.0, 0.0), goal=(2.0, 0.0))
-    from safenav.reference import GoToGoal
-
     result = run_episode(world, robot, GoToGoal(robot, world.goal), config=EpisodeConfig(duration=20.0), seed=0)
     metrics = result.metrics
     tolerance = EpisodeConfig().goal_tolerance
@@ -88,6 +88,7 @@ def test_goal_reached_ends_the_episode_with_its_time():
     assert metrics.time == metrics.time_to_goal
 
 
+@pytest.mark.sim
 def test_zones_baseline_gets_stuck_with_an_obstacle_in_its_stop_zone():
     robot = preset("rosbot")
     behind = -(robot.radius + 0.03 + 0.01)    # 3 cm behind the body, inside the 5 cm stop zone
@@ -97,6 +98,7 @@ def test_zones_baseline_gets_stuck_with_an_obstacle_in_its_stop_zone():
     assert result.metrics.stuck_time == pytest.approx(3.0)
 
 
+@pytest.mark.sim
 def test_filter_period_must_match_the_control_period():
     robot = preset("rosbot")
     with pytest.raises(InvalidConfig, match="differs from the control period"):
@@ -106,3 +108,113 @@ def test_filter_period_must_match_the_control_period():
 def test_bad_episode_config_names_the_field():
     with pytest.raises(InvalidConfig, match=r"EpisodeConfig\.duration must be a finite number > 0"):
         EpisodeConfig(duration=0.0)
+
+
+
+# ---------------------------------------------------------------------------------------------- liveness
+
+ROSBOT_LIMITS = (1.0, 3.0)   # v_max [m/s], omega_max [rad/s]
+
+
+@pytest.mark.parametrize(("nominal", "command", "expected"), [
+    ((0.5, 0.0), (0.04, 0.0), True),      # keeps 0.04 * 0.5 / 0.25 = 8 % of the progress
+    ((0.5, 0.0), (0.06, 0.0), False),     # 12 %
+    ((0.5, 0.0), (0.0, 2.0), True),       # turning is no progress along a straight nominal
+    ((0.0, 1.5), (-0.05, 0.3), False),    # 0.1 / 0.5 of a turn in place: 20 %
+    ((0.0, 1.5), (0.0, -0.3), True),      # the other way
+    ((2.0, 0.0), (0.09, 0.0), True),      # the nominal clipped to v_max first: 9 %
+    ((2.0, 0.0), (0.1, 0.0), False),      # 10 % is enough
+    ((0.04, 0.1), (0.0, 0.0), False),     # under 5 % of both limits: does not ask to move
+    ((math.nan, 0.5), (0.0, 0.0), False),  # a non-finite nominal does not ask either
+])
+def test_a_period_stalls_when_the_command_keeps_under_a_tenth_of_the_nominals_progress(nominal, command, expected):
+    assert stalled(np.array([nominal]), np.array([command]), ROSBOT_LIMITS).tolist() == [expected]
+
+
+def _sequence(*parts: tuple[int, tuple[float, float], tuple[float, float], bool]):
+    """Concatenate ``(periods, nominal, command, escaping)`` parts into per-period arrays."""
+    nominal = np.vstack([np.tile(n, (k, 1)) for k, n, _, _ in parts])
+    command = np.vstack([np.tile(u, (k, 1)) for k, _, u, _ in parts])
+    escaping = np.concatenate([np.full(k, e) for k, _, _, e in parts])
+    return nominal, command, escaping
+
+
+GO, BLOCKED, TURN = (0.5, 0.0), (0.0, 0.0), (0.0, 1.0)
+
+
+def test_deadlocks_are_runs_of_stalled_periods_and_a_blip_of_progress_does_not_end_one():
+    dt = 0.1
+    blip = round(RESUME_TIME / dt) - 1   # shorter than RESUME_TIME: bridged
+    nominal, command, escaping = _sequence(
+        (10, GO, GO, False),
+        (30, GO, BLOCKED, False), (blip, GO, GO, False), (20, GO, BLOCKED, False),   # one deadlock: 5.1 s
+        (10, GO, GO, False),
+        (5, GO, BLOCKED, False),                                                    # 0.5 s: under 1.5 s
+        (10, GO, GO, False),
+        (16, GO, BLOCKED, False), (3, GO, GO, False), (16, GO, BLOCKED, False),     # 0.3 s of progress: two
+    )
+    result = liveness(nominal, command, escaping, dt, ROSBOT_LIMITS, min_deadlock=1.5)
+    first = (30 + blip + 20) * dt
+    assert result.longest_deadlock == pytest.approx(first)
+    assert result.deadlock_time == pytest.approx(first + 1.6 + 1.6)
+    assert (result.escapes_started, result.escapes_succeeded, result.escape_time) == (0, 0, 0.0)
+
+
+def test_an_escape_succeeds_when_the_nominal_makes_progress_right_after_it_and_else_counts_as_deadlock():
+    dt = 0.05
+    nominal, command, escaping = _sequence(
+        (30, GO, BLOCKED, False), (40, GO, TURN, True), (20, GO, GO, False),        # 1.5 s stall, 2 s escape: ok
+        (30, GO, BLOCKED, False), (100, GO, TURN, True), (10, GO, BLOCKED, False),  # 5 s escape, blocked after
+        (20, GO, GO, False),
+    )
+    result = liveness(nominal, command, escaping, dt, ROSBOT_LIMITS)
+    assert (result.escapes_started, result.escapes_succeeded) == (2, 1)
+    assert result.escape_time == pytest.approx(7.0)
+    assert result.longest_deadlock == pytest.approx((30 + 100 + 10) * dt)       # the failed escape joins its stall
+    assert result.deadlock_time == pytest.approx(1.5 + 7.0)
+
+
+def test_an_escape_cut_off_by_the_goal_succeeds_and_one_cut_off_by_the_time_limit_fails():
+    nominal, command, escaping = _sequence((30, GO, BLOCKED, False), (50, GO, TURN, True))
+    reached = liveness(nominal, command, escaping, 0.05, ROSBOT_LIMITS, goal_reached=True)
+    timed_out = liveness(nominal, command, escaping, 0.05, ROSBOT_LIMITS, goal_reached=False)
+    assert (reached.escapes_succeeded, reached.longest_deadlock) == (1, pytest.approx(1.5))
+    assert (timed_out.escapes_succeeded, timed_out.longest_deadlock) == (0, pytest.approx(4.0))
+
+
+def test_chatter_is_the_mean_yaw_rate_change_and_the_speed_reversals_per_second():
+    commands = np.array([(0.2, 0.0), (0.0005, 0.5), (-0.1, -0.5), (0.0, -0.5), (0.3, -0.5)])
+    result = liveness(np.tile(GO, (5, 1)), commands, np.zeros(5, dtype=bool), 0.1, ROSBOT_LIMITS)
+    assert result.omega_chatter == pytest.approx((0.5 + 1.0 + 0.0 + 0.0) / 4 / 0.1)
+    assert result.v_reversals == pytest.approx(2 / 0.5)   # +, (within the deadband), -, (0), +
+    still = liveness(np.tile(GO, (1, 1)), np.array([(0.3, 1.0)]), np.zeros(1, dtype=bool), 0.1, ROSBOT_LIMITS)
+    assert (still.omega_chatter, still.v_reversals) == (0.0, 0.0)
+
+
+def _wall_ahead_with_goal_behind(robot):
+    """A wall 3 m wide, its face 1 m ahead, the goal 3 m ahead straight behind it: a symmetric deadlock."""
+    return World("wall", (Wall((1.05, -1.5), (1.05, 1.5)),), start=Pose2D(0.0, 0.0, 0.0), goal=(3.0, 0.0))
+
+
+@pytest.mark.sim
+def test_episode_deadlock_matches_what_the_filter_reports_and_the_escape_is_counted():
+    robot = preset("rosbot")
+    world = _wall_ahead_with_goal_behind(robot)
+    config = EpisodeConfig(duration=40.0)
+    reported: list[float] = []
+    run = run_episode(world, robot, GoToGoal(robot, world.goal), make_filter("cbf", robot, 0.05), config=config,
+                      callback=lambda step, state, result: reported.append(result.deadlock.time if result.deadlock
+                                                                           else 0.0))
+    metrics = run.metrics
+    assert max(reported) >= 5.0                              # the filter itself reports a long deadlock
+    assert metrics.longest_deadlock == pytest.approx(max(reported), abs=1e-9)
+    assert metrics.deadlock_time == pytest.approx(max(reported), abs=1e-9)
+    assert metrics.escapes_started == 0 and not metrics.goal_reached
+
+    escaping: list[bool] = []
+    escaped = run_episode(world, robot, GoToGoal(robot, world.goal), make_filter("cbf+escape", robot, 0.05),
+                          config=config, callback=lambda step, state, result: escaping.append(bool(result.escape)))
+    metrics = escaped.metrics
+    assert metrics.escapes_started >= 1 and metrics.escape_time == pytest.approx(0.05 * sum(escaping))
+    assert metrics.goal_reached and not metrics.collided
+    assert metrics.escapes_succeeded == metrics.escapes_started and metrics.longest_deadlock < 5.0

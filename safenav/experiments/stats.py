@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,7 +15,11 @@ if TYPE_CHECKING:
     from safenav.episode import EpisodeMetrics
     from safenav.experiments.runner import EpisodeOutcome
 
-__all__ = ["cell_record", "cell_records", "wilson_interval"]
+__all__ = ["DEADLOCK_LIMIT", "cell_record", "cell_records", "pooled_records", "wilson_interval"]
+
+DEADLOCK_LIMIT = 5.0
+"""An episode counts as deadlocked when its longest deadlock lasts longer than this [s]
+(:attr:`~safenav.episode.EpisodeMetrics.longest_deadlock`, see :func:`safenav.episode.liveness`)."""
 
 Z95 = 1.959963984540054
 """The 97.5 % quantile of the standard normal distribution."""
@@ -76,6 +80,15 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         * ``stuck_time``: mean time the nominal wanted to move and the robot did not [s], and
           ``stuck_fraction`` of the episode time;
         * ``fallbacks``: periods in which the filter braked because its optimiser failed (total);
+        * ``deadlocked_episodes``, ``deadlock_rate`` and its Wilson 95 % interval ``deadlock_rate_ci``:
+          episodes whose longest deadlock lasted longer than :data:`DEADLOCK_LIMIT`;
+          ``deadlock_time``: mean total deadlocked time per episode [s] (deadlocks of at least the
+          episode's ``deadlock_time``, see :func:`safenav.episode.liveness`), ``deadlock_time_total``
+          summed over the episodes [s]; ``deadlocked_seeds``;
+        * ``escapes_started``, ``escapes_succeeded``: summed over the episodes; ``escape_time``: mean
+          time an escape drove per episode [s];
+        * ``omega_chatter``: mean over the episodes of the mean ``|Δomega| / dt`` [rad/s^2];
+          ``v_reversals``: mean over the episodes of the sign changes of ``v`` per second [1/s];
         * ``filter_p50_us``, ``filter_p99_us``, ``filter_calls``: every filter call of the cell pooled [us];
         * ``episode_wall_s``: mean wall-clock time of an episode [s] (``None`` without ``wall_times``);
         * ``statuses``: filter statuses summed over the episodes; ``collided_seeds``.
@@ -94,6 +107,7 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
     has_goal = metrics[0].goal_reached is not None
     times = [m.time_to_goal for m in metrics if m.goal_reached]
     filter_times = np.concatenate([m.filter_times for m in metrics])
+    deadlocked = [m.longest_deadlock > DEADLOCK_LIMIT for m in metrics]
     statuses: dict[str, int] = {}
     for m in metrics:
         for status, count in m.statuses.items():
@@ -123,10 +137,21 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         "filter_p50_us": _finite_or_none(float(np.median(filter_times)) * 1e6) if filter_times.size else None,
         "filter_p99_us": _finite_or_none(float(np.percentile(filter_times, 99)) * 1e6) if filter_times.size
         else None,
+        "deadlocked_episodes": sum(deadlocked),
+        "deadlock_rate": sum(deadlocked) / episodes,
+        "deadlock_rate_ci": list(wilson_interval(sum(deadlocked), episodes)),
+        "deadlock_time": float(np.mean([m.deadlock_time for m in metrics])),
+        "deadlock_time_total": float(np.sum([m.deadlock_time for m in metrics])),
+        "escapes_started": int(sum(m.escapes_started for m in metrics)),
+        "escapes_succeeded": int(sum(m.escapes_succeeded for m in metrics)),
+        "escape_time": float(np.mean([m.escape_time for m in metrics])),
+        "omega_chatter": float(np.mean([m.omega_chatter for m in metrics])),
+        "v_reversals": float(np.mean([m.v_reversals for m in metrics])),
         "episode_wall_s": float(np.mean(wall_times)) if wall_times else None,
         "statuses": dict(sorted(statuses.items())),
         "seeds": seeds,
         "collided_seeds": [seed for seed, hit in zip(seeds, collided, strict=True) if hit],
+        "deadlocked_seeds": [seed for seed, hit in zip(seeds, deadlocked, strict=True) if hit],
     }
 
 
@@ -141,3 +166,50 @@ def cell_records(outcomes: Sequence[EpisodeOutcome]) -> list[dict[str, Any]]:
         records.append(cell_record(cell, group[0].robot, [o.metrics for o in group], [o.spec.seed for o in group],
                                    [o.wall_time for o in group]))
     return records
+
+
+_POOLED_MEANS = ("intervention", "stuck_time", "deadlock_time", "escape_time", "omega_chatter", "v_reversals")
+"""Per-episode means of a cell record that pool as means weighted by the cells' episodes."""
+
+_POOLED_SUMS = ("episodes", "collisions", "deadlocked_episodes", "escapes_started", "escapes_succeeded", "fallbacks")
+"""Counts of a cell record that pool as sums."""
+
+
+def pooled_records(records: Sequence[dict[str, Any]],
+                   key: Callable[[dict[str, Any]], tuple[str, ...]]) -> list[dict[str, Any]]:
+    """Cell records pooled into groups: the episodes of every cell of a group taken together.
+
+    Args:
+        records: cell records from :func:`cell_records`.
+        key: the group of a record, e.g. ``lambda r: (r["filter"],)``.
+
+    Returns:
+        One record per group, groups in order of first appearance: ``group`` (the key), ``cells``,
+        the sums of ``episodes``, ``collisions``, ``deadlocked_episodes``, ``escapes_started``,
+        ``escapes_succeeded`` and ``fallbacks``; the episode-weighted means of ``intervention``,
+        ``stuck_time``, ``deadlock_time``, ``escape_time``, ``omega_chatter`` and ``v_reversals``;
+        ``collision_rate``, ``deadlock_rate`` and their Wilson 95 % intervals; ``goal_reached``
+        and ``goal_episodes`` over the cells that have a goal (``None`` when none has);
+        ``collided`` and ``deadlocked``: ``(scenario, seed)`` of every such episode.
+    """
+    groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
+    for record in records:
+        groups.setdefault(tuple(key(record)), []).append(record)
+    pooled = []
+    for group, members in groups.items():
+        weights = np.array([member["episodes"] for member in members], dtype=float)
+        result: dict[str, Any] = {"group": list(group), "cells": len(members)}
+        result.update({name: int(sum(member[name] for member in members)) for name in _POOLED_SUMS})
+        result.update({name: float(np.average([member[name] for member in members], weights=weights))
+                       for name in _POOLED_MEANS})
+        for rate, count in (("collision_rate", "collisions"), ("deadlock_rate", "deadlocked_episodes")):
+            result[rate] = result[count] / result["episodes"]
+            result[f"{rate}_ci"] = list(wilson_interval(result[count], result["episodes"]))
+        goals = [member for member in members if member["goal_success"] is not None]
+        result["goal_reached"] = sum(member["goal_reached"] for member in goals) if goals else None
+        result["goal_episodes"] = sum(member["episodes"] for member in goals) if goals else None
+        result["collided"] = [[member["scenario"], seed] for member in members for seed in member["collided_seeds"]]
+        result["deadlocked"] = [[member["scenario"], seed] for member in members
+                                for seed in member["deadlocked_seeds"]]
+        pooled.append(result)
+    return pooled

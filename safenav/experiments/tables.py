@@ -8,10 +8,12 @@ from typing import Any
 
 from safenav._checks import choice
 
-__all__ = ["FILTER_LABELS", "markdown", "outcome_table", "timing_table"]
+__all__ = ["FILTER_LABELS", "LIVENESS_COLUMNS", "SAFETY_COLUMNS", "markdown", "outcome_table", "summary_table",
+           "timing_table"]
 
 FILTER_LABELS: Mapping[str, str] = MappingProxyType(
-    {"none": "naive (no filter)", "zones": "zones", "cbf": "CBF-QP", "mpc": "MPC"})
+    {"none": "naive (no filter)", "zones": "zones", "cbf": "CBF-QP", "mpc": "MPC",
+     "zones+escape": "zones + escape", "cbf+escape": "CBF-QP + escape", "mpc+escape": "MPC + escape"})
 """How tables, legends and the demo name each filter."""
 
 
@@ -47,6 +49,10 @@ def _goal(record: dict[str, Any]) -> str:
     return text + (f" in {record['time_to_goal']['median']:.1f} s" if record["time_to_goal"] else "")
 
 
+def _escapes(record: dict[str, Any]) -> str:
+    return f"{record['escapes_succeeded']}/{record['escapes_started']}"
+
+
 _COLUMNS: Mapping[str, Callable[[dict[str, Any]], Any]] = MappingProxyType({
     "scenario": lambda r: r["scenario"],
     "robot": lambda r: r["robot"],
@@ -61,6 +67,11 @@ _COLUMNS: Mapping[str, Callable[[dict[str, Any]], Any]] = MappingProxyType({
     "goal reached": _goal,
     "stuck [s]": lambda r: f"{r['stuck_time']:.1f}",
     "fallbacks": lambda r: r["fallbacks"],
+    "deadlocks > 5 s": lambda r: f"{r['deadlocked_episodes']}/{r['episodes']}",
+    "deadlocked [s]": lambda r: f"{r['deadlock_time']:.1f}",
+    "escapes ok/started": _escapes,
+    "chatter [rad/s²]": lambda r: f"{r['omega_chatter']:.2f}",
+    "v reversals [1/s]": lambda r: f"{r['v_reversals']:.2f}",
 })
 """How each column of :func:`outcome_table` is formatted from a cell record."""
 
@@ -70,13 +81,18 @@ def outcome_table(records: Sequence[dict[str, Any]], columns: Sequence[str] | No
 
     Progress is the goal progress [m] in goal scenarios (marked "goal"), else the distance
     travelled; intervention is the mean ``||u - u_nom||``; stuck is the mean time [s] the
-    nominal wanted to move and the robot did not.
+    nominal wanted to move and the robot did not; deadlocks > 5 s counts the episodes with a
+    deadlock longer than :data:`~safenav.experiments.stats.DEADLOCK_LIMIT`, deadlocked is the
+    mean deadlocked time per episode [s]; escapes ok/started are summed over the episodes;
+    chatter is the mean ``|Δomega| / dt`` [rad/s²] and v reversals the sign changes of the
+    commanded speed per second (:func:`safenav.episode.liveness`).
 
     Args:
         records: cell records from :func:`cell_records`.
         columns: the columns to show, in order (all when ``None``): scenario, robot, policy,
             filter, episodes, collisions, rate [95% CI], clearance min / p5 / median [m],
-            intervention, progress [m], goal reached, stuck [s], fallbacks.
+            intervention, progress [m], goal reached, stuck [s], fallbacks, deadlocks > 5 s,
+            deadlocked [s], escapes ok/started, chatter [rad/s²], v reversals [1/s].
 
     Raises:
         UnknownName: an unknown column.
@@ -95,3 +111,32 @@ def timing_table(records: Sequence[dict[str, Any]]) -> str:
             for record in records]
     return markdown(["scenario", "policy", "filter", "filter calls", "filter p50 [us]", "filter p99 [us]",
                      "episode [s]"], rows)
+
+
+SAFETY_COLUMNS = ("scenario", "robot", "policy", "filter", "episodes", "collisions", "rate [95% CI]",
+                  "clearance min / p5 / median [m]", "intervention", "progress [m]", "fallbacks")
+"""The columns of :func:`outcome_table` about safety and intervention."""
+
+LIVENESS_COLUMNS = ("scenario", "policy", "filter", "goal reached", "stuck [s]", "deadlocks > 5 s", "deadlocked [s]",
+                    "escapes ok/started", "chatter [rad/s²]", "v reversals [1/s]")
+"""The columns of :func:`outcome_table` about progress: goals, stuck and deadlocked time, escapes, chatter."""
+
+
+def summary_table(pooled: Sequence[dict[str, Any]], group_names: Sequence[str]) -> str:
+    """Pooled records (:func:`~safenav.experiments.stats.pooled_records`) as markdown, one row per group.
+
+    Args:
+        pooled: the pooled records.
+        group_names: the header of each part of the group key (``["scenarios", "filter"]``).
+    """
+    rows = []
+    for record in pooled:
+        goals = "–" if record["goal_reached"] is None else f"{record['goal_reached']}/{record['goal_episodes']}"
+        rows.append([*record["group"], record["episodes"], record["collisions"], goals,
+                     f"{record['stuck_time']:.1f}", f"{record['deadlocked_episodes']}/{record['episodes']}",
+                     f"{record['deadlock_time']:.1f}", f"{record['escapes_succeeded']}/{record['escapes_started']}",
+                     f"{record['omega_chatter']:.2f}", f"{record['v_reversals']:.2f}",
+                     f"{record['intervention']:.2f}"])
+    return markdown([*group_names, "episodes", "collisions", "goals reached", "mean stuck [s]", "deadlocks > 5 s",
+                     "deadlocked [s]", "escapes ok/started", "chatter [rad/s²]", "v reversals [1/s]",
+                     "intervention"], rows)

@@ -1,8 +1,15 @@
-"""Seeded random arenas: walls around, obstacles of mixed shapes, corridors, narrow passages, a reachable goal.
+"""Seeded worlds: random arenas, a room split by a wall with one door, a U-shaped dead end.
 
-:func:`random_world` draws everything from the ``world`` stream of its seed
-(:mod:`safenav.seeding`), so ``random_world(seed, robot)`` is the world of episode ``seed``;
-:func:`reachable` checks on a grid that the body disk can get from one point to another.
+* :func:`random_world`: walls around, obstacles of mixed shapes, corridors, narrow passages,
+  a reachable goal;
+* :func:`door_world`: a walled room split by a wall with one door of a given width, the start
+  in front of the wall and the goal behind it;
+* :func:`dead_end_world`: a walled room with a U-shaped trap whose mouth faces the start and
+  whose closed end hides the goal.
+
+Each draws everything from the ``world`` stream of its seed (:mod:`safenav.seeding`), so
+``random_world(seed, robot)`` is the world of episode ``seed``; :func:`reachable` checks on a
+grid that the body disk can get from one point to another.
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ from safenav.seeding import generator
 from safenav.worlds.shapes import WALL_THICKNESS, Box, Cylinder, Obstacle, Wall, gap, primitive, room
 from safenav.worlds.world import World
 
-__all__ = ["GRID_RESOLUTION", "START_CLEARANCE", "random_world", "reachable"]
+__all__ = ["GRID_RESOLUTION", "START_CLEARANCE", "dead_end_world", "door_world", "random_world", "reachable"]
 
 START_CLEARANCE = 0.3
 """Body clearance that :func:`random_world` keeps free around the start and the goal [m]."""
@@ -118,8 +125,7 @@ def random_world(
             says which and what to change).
     """
     seed = integer("random_world: seed", seed, low=0)
-    if not isinstance(robot, RobotSpec):
-        raise InvalidConfig(f"random_world: robot must be a RobotSpec, got {robot!r}")
+    robot = _robot("random_world", robot)
     n_obstacles = integer("random_world: n_obstacles", n_obstacles, low=0)
     corridors = integer("random_world: corridors", corridors, low=0)
     narrow_passages = integer("random_world: narrow_passages", narrow_passages, low=0)
@@ -157,9 +163,7 @@ def _draw_world(rng: np.random.Generator, seed: int, robot: RobotSpec, n_obstacl
     t = WALL_THICKNESS
     hx, hy = 0.5 * width, 0.5 * height
     placer = _Placer(min_gap)
-    arena = room((-hx - 0.5 * t, -hy - 0.5 * t), (hx + 0.5 * t, -hy - 0.5 * t),
-                  (hx + 0.5 * t, hy + 0.5 * t), (-hx - 0.5 * t, hy + 0.5 * t))
-    placer.add(*arena)
+    placer.add(*_arena(width, height))
 
     # 1. Dividers across the longer side (x when width >= height), each with a narrow door.
     along_x = width >= height
@@ -246,10 +250,137 @@ def _draw_world(rng: np.random.Generator, seed: int, robot: RobotSpec, n_obstacl
                 f"min_gap={min_gap:g} m after {max_tries} tries; lower n_obstacles, obstacle_size or min_gap"
             )
 
-    margin = 0.3
-    bounds = (-hx - t - margin, -hy - t - margin, hx + t + margin, hy + t + margin)
     goal = None if goal_xy is None else (float(goal_xy[0]), float(goal_xy[1]))
-    return World(f"random-{seed}", tuple(placer.obstacles), start=start, goal=goal, bounds=bounds)
+    return World(f"random-{seed}", tuple(placer.obstacles), start=start, goal=goal, bounds=_bounds(width, height))
+
+
+def _arena(width: float, height: float) -> tuple[Wall, ...]:
+    """The four walls round a free interior ``[-w/2, w/2] x [-h/2, h/2]`` [m]."""
+    hx, hy, half_wall = 0.5 * width, 0.5 * height, 0.5 * WALL_THICKNESS
+    return room((-hx - half_wall, -hy - half_wall), (hx + half_wall, -hy - half_wall),
+                (hx + half_wall, hy + half_wall), (-hx - half_wall, hy + half_wall))
+
+
+def _bounds(width: float, height: float, margin: float = 0.3) -> tuple[float, float, float, float]:
+    """The region to draw: the arena of free interior ``width x height`` and its walls, ``margin`` round [m]."""
+    hx, hy = 0.5 * width + WALL_THICKNESS + margin, 0.5 * height + WALL_THICKNESS + margin
+    return (-hx, -hy, hx, hy)
+
+
+Box2 = tuple[tuple[float, float], tuple[float, float]]
+"""A rectangle as its ``x`` range and its ``y`` range [m]."""
+
+
+def _room_arguments(owner: str, seed: int, robot: RobotSpec, size: tuple[float, float],
+                    smallest: tuple[float, float]) -> tuple[int, RobotSpec, float, float]:
+    """The checked seed, robot and room size ``(w, h)`` of a room builder; at least ``smallest`` [m]."""
+    seed = integer(f"{owner}: seed", seed, low=0)
+    robot = _robot(owner, robot)
+    width, height = pair(f"{owner}: size", size, low=0.0, low_open=True)
+    if width < smallest[0] or height < smallest[1]:
+        raise InvalidConfig(f"{owner}: size must be at least ({smallest[0]:g}, {smallest[1]:g}) m, got {size!r}")
+    return seed, robot, width, height
+
+
+def _seeded_room(name: str, seed: int, inside: tuple[Wall, ...], size: tuple[float, float], *, start_box: Box2,
+                 goal_box: Box2) -> World:
+    """A walled room of free interior ``size`` holding ``inside``, with a start and a goal drawn from the seed.
+
+    From the ``world`` stream of ``seed``: the start's ``x`` and ``y`` uniform in ``start_box`` and
+    its heading uniform in ``[-pi, pi)``, then the goal's ``x`` and ``y`` uniform in ``goal_box``.
+    """
+    rng = generator(seed, "world")
+    (x_low, x_high), (y_low, y_high) = start_box
+    start = Pose2D(float(rng.uniform(x_low, x_high)), float(rng.uniform(y_low, y_high)),
+                   float(rng.uniform(-math.pi, math.pi)))
+    (x_low, x_high), (y_low, y_high) = goal_box
+    goal = (float(rng.uniform(x_low, x_high)), float(rng.uniform(y_low, y_high)))
+    return World(name, _arena(*size) + inside, start=start, goal=goal, bounds=_bounds(*size))
+
+
+def door_world(seed: int, robot: RobotSpec, door_width: float, *, size: tuple[float, float] = (6.0, 5.0)) -> World:
+    """A walled room split across by a wall with one door; the start in front of it, the goal behind it.
+
+    The room's free interior is ``[-w/2, w/2] x [-h/2, h/2]`` for ``size = (w, h)``. The
+    dividing wall (:data:`~safenav.worlds.WALL_THICKNESS` thick) stands on ``x = 0`` from wall
+    to wall, with one door of exactly ``door_width`` between its two jambs, centred on
+    ``y = 0``: the door is the only way from one half to the other. From the ``world`` stream
+    of ``seed`` (:mod:`safenav.seeding`), in this order:
+
+    * the start: ``x`` uniform in ``[-w/2 + 0.7, -1.0]``, ``y`` uniform in ``[-0.8, 0.8]``
+      (in front of the door, not always in line with it), heading uniform in ``[-pi, pi)``;
+    * the goal: ``x`` uniform in ``[1.0, w/2 - 0.7]``, ``y`` uniform in ``[-0.8, 0.8]``.
+
+    Args:
+        seed: the episode's seed, an integer >= 0.
+        robot: the robot the world is for (its body must fit through the door).
+        door_width: free width of the door between the jambs [m], wider than the body
+            (``2 * robot.radius``) and narrower than the room.
+        size: free interior ``(w, h)`` of the room [m], at least 4 x 2 m.
+
+    Returns:
+        The world, named ``"door-<seed>"``.
+
+    Raises:
+        InvalidConfig: a bad seed, robot or size, or a door the body does not fit through or
+            wider than the room allows (the message names the value and what was expected).
+    """
+    seed, robot, width, height = _room_arguments("door_world", seed, robot, size, (4.0, 2.0))
+    door_width = number("door_world: door_width", door_width, low=2.0 * robot.radius, high=height - 1.0,
+                        low_open=True)
+    hy, half_wall = 0.5 * height, 0.5 * WALL_THICKNESS
+    jamb = 0.5 * door_width + half_wall   # a wall's end is squared off half a thickness past its end point
+    divider = (Wall((0.0, -hy - half_wall), (0.0, -jamb)), Wall((0.0, jamb), (0.0, hy + half_wall)))
+    return _seeded_room(f"door-{seed}", seed, divider, (width, height), start_box=((-0.5 * width + 0.7, -1.0),
+                                                                                 (-0.8, 0.8)),
+                        goal_box=((1.0, 0.5 * width - 0.7), (-0.8, 0.8)))
+
+
+def dead_end_world(seed: int, robot: RobotSpec, *, mouth_width: float | None = None, depth: float = 1.2,
+                   size: tuple[float, float] = (8.0, 6.0)) -> World:
+    """A walled room with a U-shaped trap between the start and the goal: its mouth faces the start.
+
+    The room's free interior is ``[-w/2, w/2] x [-h/2, h/2]`` for ``size = (w, h)``. The trap
+    is three walls round the free pocket ``[-depth/2, depth/2] x [-mouth_width/2, mouth_width/2]``:
+    its closed end just beyond ``x = depth / 2`` and two arms that end at ``x = -depth / 2``. A robot that drives
+    straight from the start to the goal runs into the closed end; the way round is outside
+    the arms. From the ``world`` stream of ``seed`` (:mod:`safenav.seeding`), in this order:
+
+    * the start: ``x`` uniform in ``[-w/2 + 0.8, -w/2 + 2]``, ``y`` uniform in ``[-0.3, 0.3]``,
+      heading uniform in ``[-pi, pi)``;
+    * the goal: ``x`` uniform in ``[w/2 - 2, w/2 - 0.8]``, ``y`` uniform in ``[-0.3, 0.3]``.
+
+    Args:
+        seed: the episode's seed, an integer >= 0.
+        robot: the robot the world is for.
+        mouth_width: free width inside the trap [m]; default ``4 * robot.radius + 0.4`` (room
+            to drive in and to turn round).
+        depth: length of the arms, from the mouth to the closed end [m].
+        size: free interior ``(w, h)`` of the room [m], at least 6 x 4 m.
+
+    Returns:
+        The world, named ``"dead-end-<seed>"``.
+
+    Raises:
+        InvalidConfig: an argument out of range (the message names it and what was expected).
+    """
+    seed, robot, width, height = _room_arguments("dead_end_world", seed, robot, size, (6.0, 4.0))
+    mouth_width = 4.0 * robot.radius + 0.4 if mouth_width is None else mouth_width
+    mouth_width = number("dead_end_world: mouth_width", mouth_width, low=2.0 * robot.radius,
+                         high=height - 4.0 * robot.radius - 1.0, low_open=True)
+    depth = number("dead_end_world: depth", depth, low=0.0, high=0.5 * width - 2.5, low_open=True)
+    arm = 0.5 * (mouth_width + WALL_THICKNESS)   # centre lines of the arms
+    back, mouth = 0.5 * (depth + WALL_THICKNESS), -0.5 * (depth - WALL_THICKNESS)   # inside: depth long
+    trap = room((mouth, arm), (back, arm), (back, -arm), (mouth, -arm), closed=False)
+    return _seeded_room(f"dead-end-{seed}", seed, trap, (width, height),
+                        start_box=((-0.5 * width + 0.8, -0.5 * width + 2.0), (-0.3, 0.3)),
+                        goal_box=((0.5 * width - 2.0, 0.5 * width - 0.8), (-0.3, 0.3)))
+
+
+def _robot(owner: str, robot: RobotSpec) -> RobotSpec:
+    if not isinstance(robot, RobotSpec):
+        raise InvalidConfig(f"{owner}: robot must be a RobotSpec, got {robot!r}")
+    return robot
 
 
 def reachable(world: World, radius: float, start: Sequence[float], goal: Sequence[float]) -> bool:

@@ -7,10 +7,13 @@ import pytest
 from PIL import Image
 
 from benchmarks import collision_rates
+from safenav.scenarios import scenario
 
 REQUIRED_KEYS = {"scenario", "robot", "policy", "filter", "episodes", "collisions", "collision_rate",
                  "min_clearance", "intervention", "progress", "goal_success", "stuck_time", "fallbacks",
-                 "filter_p50_us", "filter_p99_us"}
+                 "filter_p50_us", "filter_p99_us", "deadlocked_episodes", "deadlock_rate", "deadlock_rate_ci",
+                 "deadlock_time", "escapes_started", "escapes_succeeded", "escape_time", "omega_chatter",
+                 "v_reversals"}
 
 
 @pytest.mark.sim
@@ -27,10 +30,21 @@ def test_quick_collision_benchmark(tmp_path, capsys):
     cbf = [cell for cell in cells if cell["filter"] == "cbf"]
     assert any(cell["collisions"] > 0 for cell in naive)
     assert cbf and all(cell["collisions"] == 0 for cell in cbf), [c for c in cbf if c["collisions"]]
+    escaped = [cell for cell in cells if cell["filter"] in ("cbf+escape", "mpc+escape")]
+    assert escaped and all(cell["collisions"] == 0 for cell in escaped), [c for c in escaped if c["collisions"]]
+    assert [cell["filter"] for cell in cells[:7]] == ["none", "zones", "zones+escape", "cbf", "cbf+escape", "mpc",
+                                                      "mpc+escape"]
+    assert all(cell["escapes_started"] == 0 for cell in cells if "escape" not in cell["filter"])
+    summary = report["summary"]
+    assert sum(group["episodes"] for group in summary) == report["config"]["episodes"]
+    assert {tuple(group["group"]) for group in summary} == {
+        (scenario(cell["scenario"]).world_kind, cell["filter"]) for cell in cells}
     assert all(cell["filter_p50_us"] is None for cell in naive)
     assert all(cell["filter_p50_us"] > 0 and cell["filter_p99_us"] >= cell["filter_p50_us"] for cell in cbf)
     stdout = capsys.readouterr().out
     assert "| stop_at_wall | rosbot | stop_at_wall_buggy | none |" in stdout
+    assert "| goal_rosbot | go_to_goal | cbf+escape |" in stdout          # the liveness table
+    assert "| goal | mpc+escape |" in stdout                               # the summary
     with (tmp_path / "rates.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == len(cells) and "min_clearance_p5" in rows[0] and "collision_rate_ci_high" in rows[0]

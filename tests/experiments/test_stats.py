@@ -88,3 +88,25 @@ def test_cell_record_of_goal_task_without_filter():
 def test_cell_record_needs_episodes():
     with pytest.raises(InvalidConfig, match="no episodes"):
         cell_record(Cell("stop_at_wall", "stop_at_wall", "none"), "rosbot", [])
+
+
+def test_cell_record_counts_deadlocks_escapes_and_chatter_by_hand():
+    episodes = [
+        metrics(deadlock_time=6.0, longest_deadlock=6.0, escapes=(2, 1), escape_time=4.0, omega_chatter=1.0,
+                v_reversals=0.5),
+        metrics(deadlock_time=3.0, longest_deadlock=5.0, omega_chatter=2.0),      # exactly 5 s is not over it
+        metrics(escapes=(1, 1), escape_time=2.0, v_reversals=1.0),
+        metrics(deadlock_time=12.0, longest_deadlock=9.5, escapes=(3, 0), escape_time=9.0, omega_chatter=3.0,
+                v_reversals=2.5),
+    ]
+    record = cell_record(Cell("door_rosbot", "go_to_goal", "cbf+escape"), "rosbot", episodes, seeds=[3, 4, 5, 6])
+    assert (record["deadlocked_episodes"], record["deadlock_rate"]) == (2, 0.5)
+    assert record["deadlock_rate_ci"] == pytest.approx(list(wilson_interval(2, 4)))
+    assert record["deadlocked_seeds"] == [3, 6]
+    assert record["deadlock_time"] == pytest.approx(21.0 / 4)
+    assert record["deadlock_time_total"] == pytest.approx(21.0)
+    assert (record["escapes_started"], record["escapes_succeeded"]) == (6, 2)
+    assert record["escape_time"] == pytest.approx(15.0 / 4)
+    assert record["omega_chatter"] == pytest.approx(6.0 / 4)
+    assert record["v_reversals"] == pytest.approx(4.0 / 4)
+    json.dumps(record, allow_nan=False)

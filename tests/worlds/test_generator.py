@@ -6,8 +6,21 @@ import numpy as np
 import pytest
 
 from safenav import InvalidConfig, preset
+from safenav.seeding import generator
 from safenav.synthetic import Scene, cast
-from safenav.worlds import START_CLEARANCE, Box, Cylinder, Wall, World, gap, random_world, reachable, tutorial_world
+from safenav.worlds import (
+    START_CLEARANCE,
+    WALL_THICKNESS,
+    Box,
+    Cylinder,
+    Wall,
+    World,
+    gap,
+    random_world,
+    reachable,
+    tutorial_world,
+)
+from safenav.worlds.generator import dead_end_world, door_world
 
 
 def test_same_seed_same_world_and_different_seeds_differ():
@@ -101,3 +114,78 @@ def test_scene_cast_agrees_with_world_geometry_along_a_ray():
                                                                               math.sin(world.start.yaw)]])
     assert world.signed_distance(hit)[0] == pytest.approx(0.0, abs=1e-9)
     assert isinstance(world.scene(), Scene)
+
+
+# ------------------------------------------------------------------------------------- door and dead end
+
+
+@pytest.mark.parametrize("robot_name", ["rosbot", "puzzlebot", "m2wr"])
+def test_door_world_has_one_door_of_the_exact_width_start_in_front_goal_behind(robot_name):
+    robot = preset(robot_name)
+    door_width = 2 * robot.radius + 0.13
+    for seed in range(8):
+        world = door_world(seed, robot, door_width)
+        walls = [o for o in world.obstacles if isinstance(o, Wall)]
+        assert len(walls) == 6    # the room, and the divider in two pieces
+        low, high = walls[4:]
+        assert gap(low, high) == pytest.approx(door_width, abs=1e-12)
+        # The door is the only way through: on the divider's line, free only between the jambs.
+        line = np.column_stack((np.zeros(5001), np.linspace(-2.5, 2.5, 5001)))
+        free = line[world.signed_distance(line) > 0.0]
+        assert free[:, 1].min() == pytest.approx(-door_width / 2, abs=0.0015)
+        assert free[:, 1].max() == pytest.approx(door_width / 2, abs=0.0015)
+        assert world.start.x < -robot.radius - 0.05 < 0.05 + robot.radius < world.goal[0]
+        assert world.clearance(world.start, robot.radius) >= START_CLEARANCE
+        assert world.clearance(world.goal, robot.radius) >= START_CLEARANCE
+        assert reachable(world, robot.radius, world.start, world.goal)
+
+
+@pytest.mark.parametrize("robot_name", ["rosbot", "puzzlebot", "m2wr"])
+def test_dead_end_traps_the_straight_line_from_start_to_goal(robot_name):
+    robot = preset(robot_name)
+    for seed in range(8):
+        world = dead_end_world(seed, robot, depth=1.2)
+        walls = [o for o in world.obstacles if isinstance(o, Wall)]
+        top, back, bottom = walls[4:]
+        mouth_width = 4 * robot.radius + 0.4
+        assert gap(top, bottom) == pytest.approx(mouth_width, abs=1e-12)
+        # The pocket is free and open towards the start; its closed end faces the goal.
+        pocket = np.array([[x, y] for x in np.linspace(-0.59, 0.59, 13)
+                           for y in np.linspace(-mouth_width / 2 + 0.01, mouth_width / 2 - 0.01, 7)])
+        assert np.all(world.signed_distance(pocket) > 0.0)
+        assert world.signed_distance(np.array([[0.61, 0.0]]))[0] < 0.0
+        # The straight line from the start to the goal enters the mouth and hits the closed end.
+        line = np.linspace(world.start[:2], world.goal, 2001)
+        blocked = line[world.signed_distance(line) < 0.0]
+        assert blocked.size and np.all(np.abs(blocked[:, 0] - back.start[0]) <= 0.5 * WALL_THICKNESS + 1e-9)
+        assert world.start.x < -0.6 - robot.radius and world.goal[0] > 0.7 + robot.radius
+        assert world.clearance(world.start, robot.radius) >= START_CLEARANCE
+        assert world.clearance(world.goal, robot.radius) >= START_CLEARANCE
+        assert reachable(world, robot.radius, world.start, world.goal)
+
+
+@pytest.mark.parametrize("build", [lambda seed, robot: door_world(seed, robot, 0.5), dead_end_world])
+def test_door_and_dead_end_draw_start_and_goal_from_the_seed(build):
+    robot = preset("rosbot")
+    assert build(5, robot) == build(5, robot)
+    worlds = [build(seed, robot) for seed in range(5)]
+    assert len({w.start for w in worlds}) == 5 and len({w.goal for w in worlds}) == 5
+    assert len({w.obstacles for w in worlds}) == 1      # the seed moves the start and the goal only
+    rng = generator(5, "world")                          # drawn from the seed's world stream, start first
+    assert build(5, robot).start.x == pytest.approx(rng.uniform(*((-2.3, -1.0) if worlds[0].name.startswith("door")
+                                                                  else (-3.2, -2.0))))
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda robot: door_world(0, robot, 0.3), r"door_world: door_width must be .*> 0.31.*got 0.3"),
+    (lambda robot: door_world(0, robot, 4.5), r"door_world: door_width must be .*<= 4.*got 4.5"),
+    (lambda robot: door_world(0, robot, 0.5, size=(3.0, 5.0)), r"door_world: size must be at least \(4, 2\) m"),
+    (lambda robot: door_world(-1, robot, 0.5), r"door_world: seed must be an integer >= 0, got -1"),
+    (lambda robot: door_world(0, "rosbot", 0.5), r"door_world: robot must be a RobotSpec, got 'rosbot'"),
+    (lambda robot: dead_end_world(0, robot, mouth_width=0.2), r"dead_end_world: mouth_width must be .*got 0.2"),
+    (lambda robot: dead_end_world(0, robot, depth=0.0), r"dead_end_world: depth must be .*got 0.0"),
+    (lambda robot: dead_end_world(0, robot, size=(8.0, 3.0)), r"dead_end_world: size must be at least \(6, 4\) m"),
+])
+def test_door_and_dead_end_reject_bad_arguments(call, message):
+    with pytest.raises(InvalidConfig, match=message):
+        call(preset("rosbot"))
