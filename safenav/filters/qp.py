@@ -38,9 +38,8 @@ TIGHT_OPTIONS: dict[str, dict[str, float]] = {"daqp": {"primal_tol": 1e-10}, "pr
 OSQP_INITIAL_CAPACITY = 64
 #: DAQP's constraint-type flags (see ``daqp.solve``): active (a warm start), at the lower bound, equality.
 DAQP_ACTIVE, DAQP_LOWER, DAQP_EQUALITY = 1, 2, 5
-#: DAQP's exit flag for a detected cycle, and the cycle counter of the retry after one.
-DAQP_CYCLING = -2
-CYCLING_RETRY_LIMIT = 1000
+#: DAQP's exit flags for a detected cycle and for the iteration limit (both retried from cold).
+DAQP_CYCLING, DAQP_ITERATION_LIMIT = -2, -4
 
 
 class QPOutcome(NamedTuple):
@@ -288,14 +287,17 @@ class DirectDAQP:
                    else np.array(array, dtype=np.float64) for array in (qp.P, qp.q, qp.G))
         x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
                                            iter_limit=self.iter_limit)
-        if exitflag == DAQP_CYCLING:
-            # Near-degenerate vertices (many rows through one point, e.g. a stopped base) can make
-            # the active-set iteration cycle at a feasibility tolerance near round-off: solve once
-            # more from a cold start with the tolerance ten times looser (still far below every
-            # filter's own check of the answer) and a larger cycle counter.
-            sense = np.where(sense == DAQP_EQUALITY, DAQP_EQUALITY, 0).astype(np.int32)
-            x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=10.0 * self.primal_tol,
-                                               iter_limit=self.iter_limit, cycle_tol=CYCLING_RETRY_LIMIT)
+        if exitflag in (DAQP_CYCLING, DAQP_ITERATION_LIMIT):
+            # Near-degenerate vertices (many rows through one point, e.g. a stopped base) can make the
+            # active-set iteration cycle, or a warm start wander, at a feasibility tolerance near
+            # round-off: solve again from a cold start, then with the tolerance ten times looser
+            # (still far below every filter's own check of the answer).
+            cold = np.where(sense == DAQP_EQUALITY, DAQP_EQUALITY, 0).astype(np.int32)
+            for tolerance in (self.primal_tol, 10.0 * self.primal_tol):
+                x, _, exitflag, info = self._solve(P, q, G, upper, lower, cold.copy(), primal_tol=tolerance,
+                                                   iter_limit=self.iter_limit)
+                if exitflag in (1, 2):
+                    break
         elapsed = time.perf_counter() - start
         # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
         if exitflag not in (1, 2) or not np.isfinite(x).all():

@@ -51,3 +51,18 @@ def _installed() -> tuple[str, ...]:
     from safenav.filters import available_solvers
 
     return tuple(available_solvers())
+
+
+def test_direct_daqp_recovers_from_a_warm_start_that_runs_out_of_iterations():
+    """An SQP step of the MPC for the m2wr in the dead end (dead_end_m2wr, seed 0, t = 7.1 s): warm-started
+    from the previous active set DAQP hits its iteration limit (the filter fell back once); from cold it
+    solves in about 50 iterations."""
+    data = np.load(DATA / "daqp_warm_iteration_limit.npz")
+    qp = QPData(data["P"], data["q"], data["G"], data["h"], data["lb"], data["ub"],
+                data["h_lower"] if data["h_lower"].size else None, data["guess"])
+    outcome = make_backend("daqp").solve(qp)
+    assert outcome.x is not None, outcome.status
+    x = outcome.x
+    assert np.all(qp.G @ x <= qp.h + 1e-8) and np.all(x >= qp.lb - 1e-8) and np.all(x <= qp.ub + 1e-8)
+    if qp.h_lower is not None:
+        assert np.all(qp.G @ x >= qp.h_lower - 1e-8)
