@@ -30,12 +30,23 @@ built on it.
 
 from safenav.experiments.runner import EpisodeOutcome, Progress, run_spec, run_specs
 from safenav.experiments.specs import Cell, EpisodeSpec, episode_specs, matrix
-from safenav.experiments.stats import cell_record, cell_records, wilson_interval
-from safenav.experiments.tables import FILTER_LABELS, markdown, outcome_table, timing_table
+from safenav.experiments.stats import DEADLOCK_LIMIT, cell_record, cell_records, pooled_records, wilson_interval
+from safenav.experiments.tables import (
+    FILTER_LABELS,
+    LIVENESS_COLUMNS,
+    SAFETY_COLUMNS,
+    markdown,
+    outcome_table,
+    summary_table,
+    timing_table,
+)
 from safenav.scenarios import scenario_for
 
 __all__ = [
+    "DEADLOCK_LIMIT",
     "FILTER_LABELS",
+    "LIVENESS_COLUMNS",
+    "SAFETY_COLUMNS",
     "Cell",
     "EpisodeOutcome",
     "EpisodeSpec",
@@ -46,9 +57,11 @@ __all__ = [
     "markdown",
     "matrix",
     "outcome_table",
+    "pooled_records",
     "run_spec",
     "run_specs",
     "scenario_for",
+    "summary_table",
     "timing_table",
     "wilson_interval",
 ]

@@ -6,7 +6,7 @@ module                 holds
 ``shapes``             :class:`Box`, :class:`Cylinder`, :class:`Wall`, :func:`room`, :func:`gap`
 ``world``              :class:`World` (exact signed distances, analytic scene, the simulator's mesh)
 ``tutorial``           :data:`TUTORIALS`, the three classic tutorials; :func:`tutorial_world`
-``generator``          :func:`random_world`, seeded random arenas; :func:`reachable`
+``generator``          :func:`random_world`, :func:`door_world`, :func:`dead_end_world`; :func:`reachable`
 ``dynamic``            :class:`DynamicWorld`, :class:`MovingObstacle`; scripted encounters and seeded walkers
 =====================  ========================================================================
 
@@ -24,7 +24,14 @@ from safenav.worlds.dynamic import (
     random_movers,
     step_in,
 )
-from safenav.worlds.generator import GRID_RESOLUTION, START_CLEARANCE, random_world, reachable
+from safenav.worlds.generator import (
+    GRID_RESOLUTION,
+    START_CLEARANCE,
+    dead_end_world,
+    door_world,
+    random_world,
+    reachable,
+)
 from safenav.worlds.shapes import WALL_THICKNESS, Box, Cylinder, Obstacle, Wall, gap, room
 from safenav.worlds.tutorial import TUTORIAL_WORLDS, TUTORIALS, Tutorial, tutorial_world
 from safenav.worlds.world import World, obstacle_mesh
@@ -44,6 +51,8 @@ __all__ = [
     "Wall",
     "World",
     "crossing",
+    "dead_end_world",
+    "door_world",
     "gap",
     "head_on",
     "obstacle_mesh",
