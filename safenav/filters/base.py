@@ -61,6 +61,10 @@ FUTURE_TOLERANCE = 1e-3
 STILL = 0.05
 #: Commands keeping less than this share of the nominal's progress count as stalled.
 STALL_PROGRESS = 0.1
+#: Progress must last this long to end a stall [s]: a nominal that flips between turning and
+#: driving (a go-to-goal at its heading threshold) makes progress for a period now and then
+#: while the robot stays put, and one such period must not reset the deadlock clock.
+PROGRESS_RESET_TIME = 0.25
 
 
 class FilterStatus(enum.Enum):
@@ -355,6 +359,7 @@ class SafetyFilter(abc.ABC):
         self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
         self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
         self._stalled = 0.0
+        self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
         if memory_range is None:
@@ -404,6 +409,7 @@ class SafetyFilter(abc.ABC):
         self._last_command = np.zeros(2)
         self._called = False
         self._stalled = 0.0
+        self._progressing = 0.0
         self._on_reset()
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -472,10 +478,17 @@ class SafetyFilter(abc.ABC):
         size = n_v * n_v + n_omega * n_omega
         kept = (float(result.u[0]) / v_scale * n_v + float(result.u[1]) / omega_scale * n_omega) / size \
             if size > 0.0 else 1.0
-        if max(abs(n_v), abs(n_omega)) <= STILL or kept >= STALL_PROGRESS:
-            self._stalled = 0.0
+        period = result.period if math.isfinite(result.period) else self.dt
+        if max(abs(n_v), abs(n_omega)) <= STILL:
+            self._stalled = self._progressing = 0.0
             return result
-        self._stalled += result.period if math.isfinite(result.period) else self.dt
+        if kept >= STALL_PROGRESS:
+            self._progressing += period
+            if self._progressing >= PROGRESS_RESET_TIME - 1e-9:
+                self._stalled = 0.0
+            return result
+        self._progressing = 0.0
+        self._stalled += period
         if self._stalled < self.deadlock_time - 1e-9:
             return result
         reason = result.reason

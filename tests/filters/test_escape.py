@@ -41,6 +41,23 @@ def test_a_deadlock_in_front_of_a_wide_wall_is_reported_within_the_configured_ti
     assert not outcome.contact
 
 
+def test_a_nominal_that_flips_to_a_feasible_turn_now_and_then_does_not_hide_the_deadlock():
+    """A go-to-goal at its heading threshold flips between driving into the wall and turning: one period
+    of progress a second must not reset the deadlock clock (before: it did, and the escape never started)."""
+    robot = preset("rosbot")
+    safety = CBFSafetyFilter(robot, 0.05, deadlock_time=1.5)
+    scan = synthetic_scan(robot, Scene.of(wall(robot.radius + safety.margin + 0.2)))
+    velocity = np.zeros(2)
+    reported = None
+    for step in range(100):
+        nominal = (0.0, 1.0) if step % 20 == 19 else (robot.v_max, 0.0)    # a turn, one period a second
+        result = safety.filter(nominal, scan, velocity=velocity)
+        velocity = result.u.copy()
+        if result.deadlock is not None and reported is None:
+            reported = step
+    assert reported is not None and reported * 0.05 <= 2.5, reported
+
+
 @pytest.mark.parametrize("robot", ["rosbot", "puzzlebot", "m2wr"])
 @pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
 def test_with_the_escape_the_robot_goes_round_and_reaches_the_goal(robot, filter_name):
