@@ -26,10 +26,12 @@ if TYPE_CHECKING:
 __all__ = ["FILTER_COLORS", "clearance_figure", "collision_rate_figure", "draw_overlay", "overlay_figure"]
 
 FILTER_COLORS: Mapping[str, str] = MappingProxyType(
-    {"none": "#d62728", "zones": "#ff7f0e", "cbf": "#1f77b4", "mpc": "#2ca02c"})
+    {"none": "#d62728", "zones": "#ff7f0e", "cbf": "#1f77b4", "mpc": "#2ca02c",
+     "zones+escape": "#8c564b", "cbf+escape": "#9467bd", "mpc+escape": "#17becf"})
 """Line colour of each filter in the figures."""
 
-FILTER_DASHES: Mapping[str, Any] = MappingProxyType({"zones": (0, (6, 2, 1, 2)), "mpc": (0, (4, 2))})
+FILTER_DASHES: Mapping[str, Any] = MappingProxyType({"zones": (0, (6, 2, 1, 2)), "mpc": (0, (4, 2)),
+                                                    "mpc+escape": (0, (4, 2))})
 """Line style of each filter in the overlays (solid otherwise), so that coinciding paths all show."""
 
 
