@@ -205,9 +205,13 @@ class CBFSafetyFilter(SafetyFilter):
     towards a run of invalid beams) and ``blind`` (no translation towards a side no lidar
     sees); and the command box (velocity limits, reachable within one period). Only the
     obstacle families (``barrier``, ``braking``, ``sweep``) are *soft*: when no command
-    satisfies every row, a slack relaxes them alone (status ``SLACK``); the unknown-region
-    rows and the box are hard, and when they cannot all hold the base brakes at its limits
-    (status ``BRAKING``).
+    satisfies every row, one slack relaxes them in tiers (:data:`SLACK_TIERS`: the rows of
+    remembered points located worse than the margin; then those of points already inside the
+    margin, first only held at "not approached", status ``RECOVERING``; then every obstacle
+    row, status ``SLACK``), each tier only when no command keeps the later ones; the
+    unknown-region rows and the box are hard, and when they cannot all hold the base brakes at
+    its limits (status ``BRAKING``). A pair already inside the margin is left at its own rate
+    ``h(x+) >= (1 - gamma) h(x)``, whatever the smallest barrier.
 
     **Unknown region and memory** (:mod:`safenav.filters.perception`). Unknown space is
     never free. It is measured from the body's outline and each lidar's mount, not from the
