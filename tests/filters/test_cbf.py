@@ -347,7 +347,8 @@ def test_lookahead_barrier_steers_around_an_offset_obstacle():
 
 # ------------------------------------------------------------------ solvers
 
-SOLVERS = [name for name in ("daqp", "quadprog", "osqp", "qpsolvers:daqp", "qpsolvers:quadprog")
+SOLVERS = [pytest.param(name, marks=[pytest.mark.slow] if name == "osqp" else [])   # OSQP: about a minute
+           for name in ("daqp", "quadprog", "osqp", "qpsolvers:daqp", "qpsolvers:quadprog")
            if name.split(":")[-1] in available_solvers()]
 
 
