@@ -471,15 +471,14 @@ class CBFSafetyFilter(SafetyFilter):
         rate: the deepest point's recovery never sets the slack every other row is relaxed by.
         """
         soft = ~rows.hard
+        with_point = soft & (rows.point >= 0)
+        index = np.where(with_point, rows.point, 0)
+        lost = with_point & (problem.uncertainty[index] > self.margin)
         if tier == 0:
-            index = np.where(rows.point >= 0, rows.point, 0)
-            return rows.h, soft & (rows.point >= 0) & (problem.uncertainty[index] > self.margin)
-        index = np.where(rows.point >= 0, rows.point, 0)
-        inside = soft & (rows.point >= 0) & (problem.barrier[index] <= 0.0)
+            return rows.h, lost
+        inside = with_point & (problem.barrier[index] <= 0.0)
         h = np.where(inside & (rows.family == _BARRIER), np.maximum(rows.h, 0.0), rows.h)
-        if tier >= len(SLACK_TIERS) - 1:
-            return h, soft
-        return h, inside | (soft & (rows.point >= 0) & (problem.uncertainty[index] > self.margin))
+        return h, soft if tier >= len(SLACK_TIERS) - 1 else inside | lost
 
     @staticmethod
     def _prune(rows: families.Rows, problem: _Problem) -> np.ndarray:
@@ -624,6 +623,8 @@ class CBFSafetyFilter(SafetyFilter):
         working = working.copy()
         solve_time = 0.0
         outcome = None
+        if slack is not None:   # the stage's right sides and relaxed rows, the same in every round
+            stage_h, relaxed = self._stage(rows, problem, slack)
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
@@ -632,10 +633,7 @@ class CBFSafetyFilter(SafetyFilter):
             z = outcome.x
             if z is None:
                 return None, working, solve_time, outcome.status
-            bound = rows.h
-            if slack is not None:
-                stage_h, relaxed = self._stage(rows, problem, slack)
-                bound = stage_h + np.where(relaxed, z[4], 0.0)
+            bound = rows.h if slack is None else stage_h + np.where(relaxed, z[4], 0.0)
             violated = (rows.G @ z[:4] > bound + 0.1 * VERIFY_TOLERANCE) & ~working
             if not violated.any():
                 return z, working, solve_time, outcome.status
