@@ -37,12 +37,11 @@ if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this ch
 import argparse
 import csv
 import os
-import time
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
-from benchmarks.common import names, run_cli, write_json
+from benchmarks.common import names, run_cli, run_sweep, sweep_parser, where, write_json
 from safenav._checks import argument_type, integer, positive, writable_file
 from safenav.experiments import (
     EpisodeOutcome,
@@ -50,9 +49,10 @@ from safenav.experiments import (
     episode_specs,
     matrix,
     outcome_table,
-    run_specs,
+    run_spec,
     timing_table,
 )
+from safenav.experiments.runner import spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
 from safenav.filters import FILTER_NAMES, FILTERS
@@ -71,8 +71,10 @@ QUICK: Mapping[str, Any] = MappingProxyType(
 
 def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    return sweep_parser(prog, __doc__, _add_options)
+
+
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help=f"the smoke subset: scenarios {', '.join(QUICK['scenarios'])}, every filter, "
                              f"{QUICK['seeds']} seeds, {QUICK['duration']:g} s episodes (explicit options win)")
@@ -87,14 +89,9 @@ def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
                              f"itself with the escape: {','.join(DEFAULT_FILTERS)})")
     parser.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
-    parser.add_argument("--workers", metavar="N", type=argument_type(integer, low=1), default=os.cpu_count() or 1,
-                        help="processes running episodes (default: one per core)")
-    parser.add_argument("--json", metavar="PATH", help="write the cells and the configuration as JSON")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "collision_rates") -> int:
@@ -112,17 +109,15 @@ def _sweep(args: argparse.Namespace) -> int:
     scenarios = args.scenarios or (list(QUICK["scenarios"]) if args.quick else None)
     cells = matrix(scenarios, args.policies, args.filters or list(DEFAULT_FILTERS))
     filters = list(dict.fromkeys(cell.filter for cell in cells))
-    for what, path in (("--json", args.json), ("--csv", args.csv),
+    for what, path in (("--csv", args.csv),
                        ("--plots", args.plots and Path(args.plots) / "collision_rates.png")):
         if path:
             writable_file(what, path)
     specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
-          f"x {seeds} seeds, on {args.workers} processes")
-    start = time.perf_counter()
-    outcomes = run_specs(specs, args.workers, progress=not args.no_progress)
-    wall_time = time.perf_counter() - start
+          f"x {seeds} seeds, on {where(args)}")
+    outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))
 
@@ -138,7 +133,7 @@ def _sweep(args: argparse.Namespace) -> int:
     print("wall-clock times (they vary with the machine and its load):")
     print(timing_table(records))
     print()
-    print(f"{len(specs)} episodes in {wall_time:.0f} s on {args.workers} processes "
+    print(f"{len(specs)} episodes in {wall_time:.0f} s on {where(args)} "
           f"({sum(o.wall_time for o in outcomes):.0f} s of episode time)")
 
     scenario_names = list(dict.fromkeys(cell.scenario for cell in cells))
@@ -153,6 +148,8 @@ def _sweep(args: argparse.Namespace) -> int:
         "control_dt": SimConfig().control_dt,
         "episodes": len(specs),
         "workers": args.workers,
+        "backend": args.backend,
+        "address": args.address,
         "wall_time_s": wall_time,
         "episode_time_s": sum(o.wall_time for o in outcomes),
     }

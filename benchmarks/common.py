@@ -19,6 +19,7 @@ import json
 import os
 import platform
 import sys
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -26,8 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from safenav._checks import argument_type
+from safenav._checks import argument_type, writable_file
 from safenav.errors import SafeNavError
+from safenav.experiments.runner import JobRunner, add_sweep_options, sweep_settings
 from safenav.experiments.tables import markdown
 
 warnings.filterwarnings("ignore", category=UserWarning, module=r"qpsolvers(\..*)?$")
@@ -47,6 +49,52 @@ def run_cli(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
     except SafeNavError as error:
         print(f"{parser.prog}: error: {error}", file=sys.stderr)
         return 2
+
+
+def sweep_parser(prog: str, description: str,
+                 add_options: Callable[[argparse.ArgumentParser], None]) -> argparse.ArgumentParser:
+    """A sweep's command line: its own options, then where it runs (``--workers``, ``--backend``,
+    ``--address``, ``--results``, ``--resume``, ``--no-progress``), then ``--json PATH``.
+
+    Args:
+        prog: the program name (``safenav bench NAME`` passes its own).
+        description: the help text (the module's docstring, kept as written).
+        add_options: adds the sweep's own options to the parser.
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=description,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_options(parser)
+    add_sweep_options(parser)
+    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
+    return parser
+
+
+def where(args: argparse.Namespace) -> str:
+    """Where a sweep of :func:`sweep_parser` runs, for its first line: ``2 processes``, ``Ray (auto)``."""
+    if args.backend == "ray":
+        return f"Ray ({args.address or f'local, {args.workers or os.cpu_count()} CPUs'})"
+    return f"{args.workers or os.cpu_count()} processes"
+
+
+def run_sweep(args: argparse.Namespace, function: Callable[[Any], Any], jobs: Sequence[Any], *,
+              description: str, cost: Callable[[Any], float] | None = None) -> tuple[list[Any], float]:
+    """Run a sweep's jobs where its options say, after checking that its outputs can be written.
+
+    ``--json`` and ``--results`` are checked before the first job; with ``--resume`` the jobs
+    already in the results file are taken from it, and a line says how many.
+
+    Returns:
+        The results in the order of ``jobs``, and the wall-clock time [s].
+    """
+    if args.json is not None:
+        writable_file("--json", args.json)
+    started = time.perf_counter()
+    with JobRunner(**sweep_settings(args), description=description) as runner:
+        results = runner.map(function, jobs, cost=cost)
+    if args.resume:
+        print(f"resumed: {runner.reused} of {len(jobs)} episodes taken from {args.results}, "
+              f"{len(jobs) - runner.reused} run now")
+    return results, time.perf_counter() - started
 
 
 def summary(samples_s: Sequence[float] | np.ndarray) -> dict[str, float]:

@@ -32,11 +32,11 @@ from typing import Any
 if __package__ in (None, ""):   # python benchmarks/moving_obstacles.py: import from this checkout
     sys.path[0] = str(Path(__file__).resolve().parents[1])
 
-from benchmarks.common import markdown_table, names, numbers, run_cli, write_json
-from safenav._checks import argument_type, choice, integer, number, positive, writable_file
+from benchmarks.common import markdown_table, names, numbers, run_cli, run_sweep, sweep_parser, where, write_json
+from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments import wilson_interval
-from safenav.experiments.runner import add_sweep_options, reproducible_settings, run_jobs
+from safenav.experiments.runner import reproducible_settings
 from safenav.filters import FILTER_NAMES, default_margin, make_filter
 from safenav.robot import PRESET_NAMES
 from safenav.scenarios import scenario
@@ -143,8 +143,10 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 def build_parser(prog: str = "moving_obstacles") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    return sweep_parser(prog, __doc__, _add_options)
+
+
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", type=names, default=list(PRESET_NAMES), metavar="A,B",
                         help=f"comma-separated presets (default: {','.join(PRESET_NAMES)})")
     parser.add_argument("--filters", type=names, default=["zones", "cbf", "mpc"], metavar="A,B",
@@ -162,9 +164,6 @@ def build_parser(prog: str = "moving_obstacles") -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true", help="rosbot, cbf, speeds 0.5 and 1.5, 4 walkers, 2 seeds")
     parser.add_argument("--real-time", action="store_true",
                         help="keep the MPC's compute budget (results then depend on the machine's load)")
-    add_sweep_options(parser)
-    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "moving_obstacles") -> int:
@@ -177,8 +176,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "moving_obstacles") -> i
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.json is not None:
-        writable_file("--json", args.json)
     if args.quick:
         args.robots, args.filters, args.speeds, args.counts, args.seeds = ["rosbot"], ["cbf"], [0.5, 1.5], [4], 2
     robots = [choice("robot", name, PRESET_NAMES) for name in args.robots]
@@ -192,12 +189,9 @@ def _run(args: argparse.Namespace) -> int:
             for count in args.counts for seed in range(args.seeds)]
     print(f"{len(jobs)} episodes of {args.duration:g} s: {len(robots)} robots x {len(filters)} filters x "
           f"{len(args.margins)} margins x {len(args.speeds)} speeds x {len(args.counts)} counts x {args.seeds} seeds, "
-          f"on {args.backend}")
-    started = time.perf_counter()
-    records = run_jobs(run_job, jobs, args.workers, progress=not args.no_progress, description="moving obstacles",
-                       cost=lambda job: job.duration * (3.0 if job.filter.startswith("mpc") else 1.0),
-                       backend=args.backend, address=args.address)
-    wall = time.perf_counter() - started
+          f"on {where(args)}")
+    records, wall = run_sweep(args, run_job, jobs, description="moving obstacles",
+                              cost=lambda job: job.duration * (3.0 if job.filter.startswith("mpc") else 1.0))
     rows = summarise(records)
     print("OUTSIDE THE GUARANTEE (it assumes a static world): collision rate with moving walkers, "
           f"{wall:.0f} s wall")

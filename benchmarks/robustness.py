@@ -35,9 +35,10 @@ from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
-from benchmarks.common import markdown_table, names, numbers, run_cli, write_json
-from safenav._checks import argument_type, choice, integer, number, positive, writable_file
-from safenav.experiments import Cell, EpisodeSpec, cell_record, run_specs
+from benchmarks.common import markdown_table, names, numbers, run_cli, run_sweep, sweep_parser, where, write_json
+from safenav._checks import argument_type, choice, integer, number, positive
+from safenav.experiments import Cell, EpisodeSpec, cell_record, run_spec
+from safenav.experiments.runner import spec_cost
 from safenav.filters import default_margin
 from safenav.scenarios import scenario
 
@@ -94,8 +95,10 @@ def specs_for(configuration: dict[str, Any], seeds: Sequence[int], duration: flo
 
 def build_parser(prog: str = "robustness") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    return sweep_parser(prog, __doc__, _add_options)
+
+
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--filters", type=names, default=["cbf", "mpc"], metavar="A,B",
                         help="comma-separated filters with a margin (default: cbf,mpc)")
     parser.add_argument("--faults", type=names, default=list(FAULTS), metavar="A,B",
@@ -109,11 +112,6 @@ def build_parser(prog: str = "robustness") -> argparse.ArgumentParser:
     parser.add_argument("--margins", type=numbers(number, low=0.0), default=list(EXTRA_MARGINS), metavar="A,B",
                         help="comma-separated extra margins [m] added to each filter's default (default: 0,0.02,0.05)")
     parser.add_argument("--quick", action="store_true", help="one seed, 8 s episodes, the default margin only")
-    parser.add_argument("--workers", type=argument_type(integer, low=1), default=None,
-                        help="processes (default: one per core)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress")
-    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
@@ -128,8 +126,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
 def _sweep(args: argparse.Namespace) -> int:
     if args.quick:
         args.seeds, args.duration, args.margins = 1, 8.0, [0.0]
-    if args.json is not None:
-        writable_file("--json", args.json)
     filters = [choice("filter with a margin", name, ("cbf", "mpc")) for name in args.filters]
     faults = [choice("fault", name, tuple(FAULTS)) for name in args.faults]
     cell_names = dict(CELLS)
@@ -137,8 +133,9 @@ def _sweep(args: argparse.Namespace) -> int:
     configs = configurations(filters, args.margins, faults)
     seeds = range(args.seeds)
     specs = [spec for config in configs for spec in specs_for(config, seeds, args.duration, cells)]
-    print(f"{len(configs)} configurations x {len(cells)} cells x {args.seeds} seeds = {len(specs)} episodes")
-    outcomes = run_specs(specs, workers=args.workers, progress=not args.no_progress, description="robustness")
+    print(f"{len(configs)} configurations x {len(cells)} cells x {args.seeds} seeds = {len(specs)} episodes, "
+          f"on {where(args)}")
+    outcomes, _ = run_sweep(args, run_spec, specs, description="robustness", cost=spec_cost)
 
     per_config = len(cells) * args.seeds
     records = []

@@ -51,10 +51,10 @@ import numpy as np
 if __package__ in (None, ""):   # python benchmarks/stop_metrics.py: import from this checkout
     sys.path[0] = str(Path(__file__).resolve().parents[1])
 
-from benchmarks.common import markdown_table, names, run_cli, write_json
-from safenav._checks import argument_type, choice, integer, number, positive, writable_file
+from benchmarks.common import markdown_table, names, run_cli, run_sweep, sweep_parser, where, write_json
+from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
-from safenav.experiments.runner import add_sweep_options, reproducible_settings, run_jobs
+from safenav.experiments.runner import reproducible_settings
 from safenav.filters import FILTER_NAMES, make_filter
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
@@ -331,8 +331,10 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 def build_parser(prog: str = "stop_metrics") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    return sweep_parser(prog, __doc__, _add_options)
+
+
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", type=names, default=["rosbot"], metavar="A,B",
                         help=f"comma-separated presets (default: rosbot; any of {','.join(PRESET_NAMES)})")
     parser.add_argument("--filters", type=names, default=list(FILTER_NAMES), metavar="A,B",
@@ -348,9 +350,6 @@ def build_parser(prog: str = "stop_metrics") -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true", help="one seed")
     parser.add_argument("--real-time", action="store_true",
                         help="keep the MPC's compute budget (results then depend on the machine's load)")
-    add_sweep_options(parser)
-    parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "stop_metrics") -> int:
@@ -363,8 +362,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "stop_metrics") -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.json is not None:
-        writable_file("--json", args.json)
     robots = [choice("robot", name, tuple(CRUISE_SPEED)) for name in args.robots]
     filters = [choice("filter", name, FILTER_NAMES) for name in args.filters]
     seeds = 1 if args.quick else args.seeds
@@ -372,12 +369,9 @@ def _run(args: argparse.Namespace) -> int:
                     real_time=args.real_time)
             for robot in robots for name in filters for episode in EPISODES for seed in range(seeds)]
     print(f"{len(jobs)} episodes: {len(robots)} robots x {len(filters)} filters x {len(EPISODES)} episodes x "
-          f"{seeds} seeds, on {args.backend}")
-    started = time.perf_counter()
-    records = run_jobs(run_job, jobs, args.workers, progress=not args.no_progress, description="stop metrics",
-                       cost=lambda job: 3.0 if job.filter.startswith("mpc") else 1.0, backend=args.backend,
-                       address=args.address)
-    wall = time.perf_counter() - started
+          f"{seeds} seeds, on {where(args)}")
+    records, wall = run_sweep(args, run_job, jobs, description="stop metrics",
+                              cost=lambda job: 3.0 if job.filter.startswith("mpc") else 1.0)
     rows = summarise(records)
     print(f"a walker of radius {WALKER_RADIUS} m steps in {args.gap} m ahead of the body for {args.stay} s, or "
           f"passes {args.pass_gap} m beside it; the worst of {seeds} seeds; {wall:.0f} s wall")

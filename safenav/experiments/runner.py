@@ -14,7 +14,13 @@ Backends (:data:`BACKENDS`):
   its extras installed: Ray ships the task, not the library.
 
 :func:`run_jobs` runs any picklable function over any items the same way; :func:`run_specs` is it
-applied to :func:`run_spec`.
+applied to :func:`run_spec`; a :class:`JobRunner` runs batch after batch on one pool or one Ray (a
+search that asks for a generation at a time).
+
+Resuming: with ``results=PATH`` every finished job is appended to a JSON-lines file as it finishes
+(:mod:`safenav.experiments.results`); after an interruption (Ctrl-C, a killed worker, a lost Ray
+node) the same sweep with ``resume=True`` takes the jobs already in the file from it and runs only
+the others, so its outcomes equal an uninterrupted run's.
 """
 
 from __future__ import annotations
@@ -26,24 +32,25 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, as_completed, wait
 from dataclasses import dataclass
 from typing import IO, Any, TypeVar
 
 import numpy as np
 
-from safenav._checks import argument_type, choice, integer
+from safenav._checks import argument_type, choice, integer, writable_file
 from safenav._optional import require
 from safenav.episode import EpisodeConfig, EpisodeMetrics, Trajectory, run_episode
 from safenav.errors import InvalidConfig
+from safenav.experiments.results import ResultsFile, job_name
 from safenav.experiments.specs import EpisodeSpec
 from safenav.filters import ESCAPE_SUFFIX, make_filter
 from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
-__all__ = ["BACKENDS", "EpisodeOutcome", "Progress", "add_sweep_options", "reproducible_settings", "run_jobs",
-           "run_spec", "run_specs"]
+__all__ = ["BACKENDS", "EpisodeOutcome", "JobRunner", "Progress", "add_sweep_options", "reproducible_settings",
+           "run_jobs", "run_spec", "run_specs", "spec_cost", "sweep_settings"]
 
 BACKENDS = ("process", "ray")
 """Where :func:`run_jobs` runs: a local process pool (the default), or Ray tasks (the ``distributed`` extra)."""
@@ -96,7 +103,7 @@ def run_spec(spec: EpisodeSpec) -> EpisodeOutcome:
     return EpisodeOutcome(spec, robot.name, world, result.metrics, result.trajectory, time.perf_counter() - start)
 
 
-def _cost(spec: EpisodeSpec) -> float:
+def spec_cost(spec: EpisodeSpec) -> float:
     """A rough relative cost, to start the longest episodes first (a shorter tail)."""
     duration = scenario(spec.scenario).duration if spec.duration is None else spec.duration
     return duration * {"none": 0.5, "mpc": 3.0}.get(spec.filter, 1.0)
@@ -168,10 +175,9 @@ def reproducible_settings(filter_name: str) -> dict[str, Any]:
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--workers``, ``--backend``, ``--address`` and ``--no-progress`` to a sweep's command line.
+    """Add ``--workers``, ``--backend``, ``--address``, ``--results``, ``--resume`` and ``--no-progress``.
 
-    Pass them on as ``run_jobs(..., args.workers, progress=not args.no_progress, backend=args.backend,
-    address=args.address)`` (:func:`run_jobs`, :func:`run_specs`).
+    Pass them on with :func:`sweep_settings`: ``run_jobs(function, items, **sweep_settings(args))``.
     """
     parser.add_argument("--workers", type=argument_type(integer, low=1), default=None,
                         help="processes, or the CPUs of a local Ray (default: one per core)")
@@ -179,18 +185,37 @@ def add_sweep_options(parser: argparse.ArgumentParser) -> None:
                         help="where the episodes run (default: process; ray needs safenav[distributed])")
     parser.add_argument("--address", default=None,
                         help="with --backend ray: the cluster to join (auto, ray://HOST:10001); default: a local Ray")
+    parser.add_argument("--results", metavar="PATH", default=None,
+                        help="stream every finished episode to this JSON-lines file, so an interrupted sweep can "
+                             "resume (docs/distributed.md)")
+    parser.add_argument("--resume", action="store_true",
+                        help="with --results: reuse the episodes already in the file and run only the others")
     parser.add_argument("--no-progress", action="store_true", help="no progress")
 
 
+def sweep_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of :func:`run_jobs` (and :class:`JobRunner`) from :func:`add_sweep_options`' options.
+
+    Raises:
+        InvalidConfig: ``--resume`` without ``--results``, or a results path that cannot be written.
+    """
+    if args.resume and args.results is None:
+        raise InvalidConfig("--resume needs the sweep's results file; expected --results PATH as well")
+    if args.results is not None:
+        writable_file("--results", args.results)
+    return {"workers": args.workers, "backend": args.backend, "address": args.address,
+            "progress": not args.no_progress, "results": args.results, "resume": args.resume}
+
+
 def run_specs(specs: Sequence[EpisodeSpec], workers: int | None = None, *, progress: bool = True,
-              description: str = "episodes", backend: str = "process",
-              address: str | None = None) -> list[EpisodeOutcome]:
+              description: str = "episodes", backend: str = "process", address: str | None = None,
+              results: str | os.PathLike[str] | None = None, resume: bool = False) -> list[EpisodeOutcome]:
     """Run every spec, on ``workers`` processes or on Ray, with progress on standard error.
 
     Each episode depends only on its spec, so the outcomes do not depend on the number of
-    workers, the backend, or the order in which they finish. The specs were checked when they
-    were made (:class:`EpisodeSpec`); an episode that fails anyway fails the run, and the queued
-    ones are not started.
+    workers, the backend, the order in which they finish, or on a resume. The specs were checked
+    when they were made (:class:`EpisodeSpec`); an episode that fails anyway fails the run, and
+    the queued ones are not started.
 
     Args:
         specs: the episodes.
@@ -201,107 +226,204 @@ def run_specs(specs: Sequence[EpisodeSpec], workers: int | None = None, *, progr
         backend: one of :data:`BACKENDS`.
         address: the Ray cluster to join (``"auto"``, ``"ray://host:10001"``); ``None`` starts a
             local one. Only with ``backend="ray"``.
+        results: a JSON-lines file every finished episode is appended to as it finishes
+            (:class:`~safenav.experiments.results.ResultsFile`).
+        resume: reuse the episodes already in ``results``; run only the others.
 
     Returns:
         The outcomes, in the order of ``specs``.
 
     Raises:
-        InvalidConfig: ``workers`` is not an integer >= 1, or an address without Ray.
+        InvalidConfig: ``workers`` is not an integer >= 1, an address without Ray, ``resume``
+            without ``results``, or ``results`` holds results and ``resume`` is not set.
         UnknownName: an unknown backend.
         MissingDependency: Ray is not installed (``pip install "safenav[distributed]"``).
     """
-    return run_jobs(run_spec, specs, workers, progress=progress, description=description, cost=_cost,
-                    backend=backend, address=address)
+    return run_jobs(run_spec, specs, workers, progress=progress, description=description, cost=spec_cost,
+                    backend=backend, address=address, results=results, resume=resume)
 
 
 def run_jobs(function: Callable[[Item], Result], items: Sequence[Item], workers: int | None = None, *,
              progress: bool = True, description: str = "episodes", cost: Callable[[Item], float] | None = None,
-             backend: str = "process", address: str | None = None) -> list[Result]:
+             backend: str = "process", address: str | None = None, results: str | os.PathLike[str] | None = None,
+             resume: bool = False) -> list[Result]:
     """``[function(item) for item in items]``, on a process pool or on Ray, with progress; in the order of ``items``.
+
+    One batch on a :class:`JobRunner` (which keeps its pool or its Ray between batches).
 
     Args:
         function: a module-level (picklable) function of one item; it must depend on nothing else
             for the results not to depend on where they ran.
-        items: its arguments (picklable).
+        items: its arguments (picklable; ``repr`` names an item in the results file).
         workers: see :func:`run_specs`.
         progress: show the progress.
         description: the progress label.
         cost: a rough relative cost of an item; the most costly start first (a shorter tail).
         backend: one of :data:`BACKENDS`.
         address: see :func:`run_specs`.
+        results: see :func:`run_specs`.
+        resume: see :func:`run_specs`.
 
     Raises:
-        InvalidConfig: ``workers`` is not an integer >= 1, or an address without Ray.
+        InvalidConfig: ``workers`` is not an integer >= 1, an address without Ray, or a results
+            file that cannot be used (see :func:`run_specs`).
         UnknownName: an unknown backend.
     """
-    backend = choice("backend", backend, BACKENDS)
-    workers = (os.cpu_count() or 1) if workers is None else integer("workers", workers, low=1)
-    if address is not None and backend != "ray":
-        raise InvalidConfig(f"address={address!r} is for the Ray backend; expected backend='ray', got {backend!r}")
-    order = sorted(range(len(items)), key=lambda i: -cost(items[i])) if cost is not None else range(len(items))
-    results: list[Any] = [_MISSING] * len(items)
-    with Progress(len(items), description, enabled=progress) as bar:
-        if backend == "ray":
-            finished = _on_ray(function, items, order, workers, address)
-        elif workers == 1 or len(items) <= 1:
-            finished = ((index, function(items[index])) for index in range(len(items)))
-        else:
-            finished = _on_pool(function, items, order, workers)
-        for index, result in finished:
-            results[index] = result
-            bar.update()
-    return results
+    with JobRunner(workers, backend=backend, address=address, results=results, resume=resume,
+                   progress=progress, description=description) as runner:
+        return runner.map(function, items, cost=cost)
 
 
 _MISSING = object()
 
 
-def _on_pool(function: Callable[[Item], Result], items: Sequence[Item], order: Sequence[int],
-             workers: int) -> Iterator[tuple[int, Result]]:
-    with ProcessPoolExecutor(max_workers=min(workers, len(items))) as pool:
-        futures = {pool.submit(function, items[index]): index for index in order}
+class JobRunner:
+    """Runs batches of jobs on a process pool or on Ray, keeping the backend up between batches.
+
+    A search that asks for a batch at a time (the falsifier's CMA-ES generations) starts its
+    pool or its Ray once. Finished jobs are appended to the results file as they finish, and on
+    ``resume`` the jobs already there are taken from it instead of being run.
+
+    Args:
+        workers: processes (``None``: one per core; 1 runs in this process with the process
+            backend); with a local Ray, its CPUs.
+        backend: one of :data:`BACKENDS`.
+        address: the Ray cluster to join; ``None`` starts a local one (only with ``backend="ray"``).
+        results: the results file (:class:`~safenav.experiments.results.ResultsFile`), or ``None``.
+        resume: reuse the results already in ``results``.
+        progress: show the progress of each batch.
+        description: the progress label.
+
+    Raises:
+        InvalidConfig: ``workers`` is not an integer >= 1, an address without Ray, ``resume``
+            without ``results``, or ``results`` holds results and ``resume`` is not set.
+        UnknownName: an unknown backend.
+    """
+
+    def __init__(self, workers: int | None = None, *, backend: str = "process", address: str | None = None,
+                 results: str | os.PathLike[str] | None = None, resume: bool = False, progress: bool = True,
+                 description: str = "episodes") -> None:
+        self.backend = choice("backend", backend, BACKENDS)
+        self.workers = (os.cpu_count() or 1) if workers is None else integer("workers", workers, low=1)
+        if address is not None and self.backend != "ray":
+            raise InvalidConfig(f"address={address!r} is for the Ray backend; expected backend='ray', "
+                                f"got {self.backend!r}")
+        if resume and results is None:
+            raise InvalidConfig("resume=True needs the results file to resume from; expected results=PATH")
+        self.address = address
+        self.progress = progress
+        self.description = description
+        self.results = None if results is None else ResultsFile(results, resume=resume)
+        self.reused = 0
+        """Jobs taken from the results file instead of being run, over every batch so far."""
+        self._pool: ProcessPoolExecutor | None = None
+        self._ray: Any = None
+        self._ray_started = False
+
+    def __enter__(self) -> JobRunner:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Shut the pool (or the local Ray started here) down and close the results file."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        if self._ray_started:
+            self._ray.shutdown()
+            self._ray_started = False
+        if self.results is not None:
+            self.results.close()
+
+    def map(self, function: Callable[[Item], Result], items: Sequence[Item], *,
+            cost: Callable[[Item], float] | None = None) -> list[Result]:
+        """``[function(item) for item in items]`` in the order of ``items``; see :func:`run_jobs`."""
+        name = job_name(function)
+        keys = [repr(item) for item in items] if self.results is not None else []
+        outputs: list[Any] = [_MISSING] * len(items)
+        if self.results is not None:
+            for index, key in enumerate(keys):
+                outputs[index] = self.results.get(name, key, _MISSING)
+        order = sorted(range(len(items)), key=lambda i: -cost(items[i])) if cost is not None else range(len(items))
+        todo = [index for index in order if outputs[index] is _MISSING]
+        self.reused += len(items) - len(todo)
+
+        with Progress(len(todo), self.description, enabled=self.progress) as bar:
+            def finish(index: int, result: Any) -> None:
+                outputs[index] = result
+                if self.results is not None:
+                    self.results.add(name, keys[index], result)
+                bar.update()
+
+            if self.backend == "ray":
+                self._on_ray(function, items, todo, finish)
+            elif self.workers == 1 or len(todo) <= 1:
+                for index in todo:
+                    finish(index, function(items[index]))
+            else:
+                self._on_pool(function, items, todo, finish, outputs)
+        return outputs
+
+    def _on_pool(self, function: Callable[[Item], Result], items: Sequence[Item], todo: Sequence[int],
+                 finish: Callable[[int, Any], None], outputs: list[Any]) -> None:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=self.workers)
+        futures = {self._pool.submit(function, items[index]): index for index in todo}
         try:
             for future in as_completed(futures):
-                yield futures[future], future.result()
+                finish(futures[future], future.result())
         except BaseException:
-            # A job failed or the user pressed Ctrl-C: do not start the queued ones.
-            pool.shutdown(wait=True, cancel_futures=True)
+            # A job failed or the user pressed Ctrl-C: start none of the queued jobs, keep those that finish.
+            for future in futures:
+                future.cancel()
+            wait(futures)
+            for future, index in futures.items():
+                if outputs[index] is _MISSING and not future.cancelled() and future.exception() is None:
+                    finish(index, future.result())
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
             raise
 
-
-def _on_ray(function: Callable[[Item], Result], items: Sequence[Item], order: Sequence[int], workers: int,
-            address: str | None) -> Iterator[tuple[int, Result]]:
-    """Every item a Ray task; results yielded as they finish. A local Ray started here is shut down at the end."""
-    ray = require("ray", extra="distributed", purpose="sweeps on a Ray cluster (--backend ray)")
-    started = not ray.is_initialized()
-    if started:
-        options: dict[str, Any] = {"address": address, "include_dashboard": False, "log_to_driver": False,
-                                   "configure_logging": False}
-        if address is None:
-            options["num_cpus"] = workers
-        try:
-            with _quiet_stderr():
-                ray.init(**options)
-        except ConnectionError as error:
-            raise InvalidConfig(f"no Ray cluster answers at address={address!r} ({error}); expected the address of "
-                                "a running cluster (`ray start --head` on its head node), or no address for a "
-                                "local Ray") from error
-    try:
+    def _on_ray(self, function: Callable[[Item], Result], items: Sequence[Item], todo: Sequence[int],
+                finish: Callable[[int, Any], None]) -> None:
+        """Every job a Ray task; results taken as they finish."""
+        ray = self._start_ray()
         task = ray.remote(num_cpus=1)(_call)
-        shipped = ray.put(function)   # once, not with every task
-        pending = {task.remote(shipped, items[index]): index for index in order}
+        shipped = ray.put(function)   # once per batch, not with every task
+        pending = {task.remote(shipped, items[index]): index for index in todo}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)
                 for reference in done:
-                    yield pending.pop(reference), ray.get(reference)
+                    finish(pending.pop(reference), ray.get(reference))
         except BaseException:
             for reference in pending:
                 ray.cancel(reference, force=True)
             raise
-    finally:
-        if started:
-            ray.shutdown()
+
+    def _start_ray(self) -> Any:
+        """Ray, initialised once: a local one with ``workers`` CPUs, the cluster at ``address``, or the
+        Ray already initialised in this process (left running at the end)."""
+        if self._ray is not None:
+            return self._ray
+        ray = require("ray", extra="distributed", purpose="sweeps on a Ray cluster (--backend ray)")
+        if not ray.is_initialized():
+            options: dict[str, Any] = {"address": self.address, "include_dashboard": False, "log_to_driver": False,
+                                       "configure_logging": False}
+            if self.address is None:
+                options["num_cpus"] = self.workers
+            try:
+                with _quiet_stderr():
+                    ray.init(**options)
+            except ConnectionError as error:
+                raise InvalidConfig(f"no Ray cluster answers at address={self.address!r} ({error}); expected the "
+                                    "address of a running cluster (`ray start --head` on its head node), or no "
+                                    "address for a local Ray") from error
+            self._ray_started = True
+        self._ray = ray
+        return ray
 
 
 def _call(function: Callable[[Item], Result], item: Item) -> Result:
