@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+import safenav
 from safenav._checks import argument_type, writable_file
 from safenav.errors import SafeNavError
 from safenav.experiments.runner import JobRunner, add_sweep_options, sweep_settings
@@ -49,6 +50,12 @@ def run_cli(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
     except SafeNavError as error:
         print(f"{parser.prog}: error: {error}", file=sys.stderr)
         return 2
+
+
+SHIPPED = (sys.modules[__package__ or "benchmarks"], safenav)
+"""What Ray uploads to its workers for a benchmark's jobs: this ``benchmarks`` package (it is not in the
+wheel) and the ``safenav`` this process imported, so the workers run the very code the driver runs
+(a checkout's, not an older installed one). Compiled dependencies must be installed on every node."""
 
 
 def sweep_parser(prog: str, description: str,
@@ -89,7 +96,7 @@ def run_sweep(args: argparse.Namespace, function: Callable[[Any], Any], jobs: Se
     if args.json is not None:
         writable_file("--json", args.json)
     started = time.perf_counter()
-    with JobRunner(**sweep_settings(args), description=description) as runner:
+    with JobRunner(**sweep_settings(args), description=description, ship=SHIPPED) as runner:
         results = runner.map(function, jobs, cost=cost)
     if args.resume:
         print(f"resumed: {runner.reused} of {len(jobs)} episodes taken from {args.results}, "

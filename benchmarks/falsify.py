@@ -29,12 +29,13 @@ period), ``ramp_limit`` (towards ``u`` at the acceleration limits, then held), `
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,7 +44,9 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
+from benchmarks.common import SHIPPED, where
 from safenav._optional import require
+from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
@@ -578,8 +581,93 @@ class Found:
     outcome: Outcome
 
 
+def evaluate(episode: Episode) -> Outcome:
+    """Simulate one episode of a search (a job for the process pool or Ray)."""
+    return run(episode)[0]
+
+
+def _search_value(outcome: Outcome) -> float:
+    """What CMA-ES is told: the objective, tie-broken on the filter's own barrier so the search moves
+    towards trouble even without contact."""
+    return outcome.objective + 0.1 * max(min(outcome.min_barrier, 1.0), -1.0)
+
+
+class CellSearch:
+    """The search of one cell, a generation at a time: :meth:`ask` for episodes, :meth:`tell` their outcomes.
+
+    The episodes asked depend only on the seed and on the outcomes told, so a search whose
+    generations run on a process pool, on Ray or in this process, or resume from a results file,
+    asks the same episodes and finds the same worst case.
+
+    Args:
+        cell: keyword arguments of :func:`decode` other than the vector and the margin.
+        episodes: episodes to spend in this cell.
+        seed: seed of the random starts and of CMA-ES.
+        margin: the filter's margin [m] (the decoder keeps every obstacle outside it).
+        optimiser: ``"cma"`` (CMA-ES restarted from seeded random points) or ``"random"`` (a
+            generation is up to 8 random points).
+    """
+
+    RANDOM_GENERATION = 8
+
+    def __init__(self, cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
+                 optimiser: str = "cma") -> None:
+        self.cell = cell
+        self.episodes = episodes
+        self.margin = margin
+        self.optimiser = optimiser
+        self.found: list[Found] = []
+        self._rng = np.random.default_rng(seed)
+        self._strategy: Any = None
+        self._candidates: list[np.ndarray] = []
+        self._numpy_state: Any = None
+        if optimiser == "cma":
+            self._cma = require("cma", extra="bench", purpose="the falsifier's CMA-ES search")
+
+    @property
+    def done(self) -> bool:
+        """Every episode of the cell has been told."""
+        return len(self.found) >= self.episodes
+
+    def ask(self) -> list[Episode]:
+        """The next generation's episodes."""
+        if self.optimiser == "random":
+            count = min(self.RANDOM_GENERATION, self.episodes - len(self.found))
+            self._candidates = [self._rng.uniform(0.0, 1.0, N_COORDINATES) for _ in range(count)]
+        else:
+            with self._own_numpy_random():
+                while self._strategy is None or self._strategy.stop():   # a restart from a new seeded point
+                    budget = self.episodes - len(self.found)
+                    start = self._rng.uniform(0.0, 1.0, N_COORDINATES)
+                    options = {"seed": int(self._rng.integers(1, 2**31 - 1)), "maxfevals": budget, "verbose": -9,
+                               "popsize": min(8, max(4, budget // 4))}
+                    self._strategy = self._cma.CMAEvolutionStrategy(start, 0.3, options)
+                self._candidates = self._strategy.ask()
+        return [decode(np.asarray(x, dtype=float), margin=self.margin, **self.cell) for x in self._candidates]
+
+    def tell(self, episodes: Sequence[Episode], outcomes: Sequence[Outcome]) -> None:
+        """The outcomes of the episodes of the last :meth:`ask`, in its order."""
+        self.found.extend(Found(episode, outcome) for episode, outcome in zip(episodes, outcomes, strict=True))
+        if self._strategy is not None:
+            with self._own_numpy_random():
+                self._strategy.tell(self._candidates, [_search_value(outcome) for outcome in outcomes])
+
+    @contextlib.contextmanager
+    def _own_numpy_random(self) -> Iterator[None]:
+        """CMA-ES draws from numpy's global generator, seeded when a strategy starts: searches that take
+        turns (:func:`search_cells`) each keep their own state of it, as if each ran alone."""
+        outside = np.random.get_state()
+        if self._numpy_state is not None:
+            np.random.set_state(self._numpy_state)
+        try:
+            yield
+        finally:
+            self._numpy_state = np.random.get_state()
+            np.random.set_state(outside)
+
+
 def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
-           optimiser: str = "cma") -> list[Found]:
+           optimiser: str = "cma", runner: JobRunner | None = None) -> list[Found]:
     """Search one cell (robot, filter, base, dt, geometry, nominal) for the worst episode.
 
     Args:
@@ -588,36 +676,42 @@ def search(cell: dict[str, Any], *, episodes: int, seed: int, margin: float,
         seed: seed of the random start and of CMA-ES.
         margin: the filter's margin [m] (the decoder keeps every obstacle outside it).
         optimiser: ``"cma"`` (CMA-ES restarted from seeded random points) or ``"random"``.
+        runner: runs each generation's episodes (a process pool, Ray); in this process when ``None``.
 
     Returns:
         Every evaluated episode.
     """
-    rng = np.random.default_rng(seed)
-    found: list[Found] = []
+    return search_cells([CellSearch(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)],
+                        runner)[0]
 
-    def evaluate(x: np.ndarray) -> float:
-        episode = decode(np.asarray(x, dtype=float), margin=margin, **cell)
-        outcome, _ = run(episode)
-        found.append(Found(episode, outcome))
-        # Tie-break on the filter's own barrier so the search moves towards trouble even without contact.
-        return outcome.objective + 0.1 * max(min(outcome.min_barrier, 1.0), -1.0)
 
-    if optimiser == "random":
-        for _ in range(episodes):
-            evaluate(rng.uniform(0.0, 1.0, N_COORDINATES))
-        return found
-    cma = require("cma", extra="bench", purpose="the falsifier's CMA-ES search")
+def search_cells(searches: Sequence[CellSearch], runner: JobRunner | None = None,
+                 finished: Callable[[int, list[Found]], None] | None = None) -> list[list[Found]]:
+    """Run every search to its end, in rounds: each round one generation of every unfinished search, all
+    of them one batch of jobs (so a cluster gets cells x population episodes at a time).
 
-    while len(found) < episodes:
-        budget = episodes - len(found)
-        start = rng.uniform(0.0, 1.0, N_COORDINATES)
-        options = {"seed": int(rng.integers(1, 2**31 - 1)), "maxfevals": budget, "verbose": -9,
-                   "popsize": min(8, max(4, budget // 4))}
-        strategy = cma.CMAEvolutionStrategy(start, 0.3, options)
-        while not strategy.stop() and len(found) < episodes:
-            candidates = strategy.ask()
-            strategy.tell(candidates, [evaluate(c) for c in candidates])
-    return found[:episodes]
+    Args:
+        searches: the searches.
+        runner: runs each round's episodes; in this process when ``None``.
+        finished: called with a search's index and its episodes when it ends.
+
+    Returns:
+        Every evaluated episode of each search, in the order of ``searches``.
+    """
+    active = [index for index, state in enumerate(searches) if not state.done]
+    while active:
+        asked = {index: searches[index].ask() for index in active}
+        batch = [episode for index in active for episode in asked[index]]
+        outcomes = runner.map(evaluate, batch) if runner is not None else [evaluate(item) for item in batch]
+        position = 0
+        for index in active:
+            count = len(asked[index])
+            searches[index].tell(asked[index], outcomes[position:position + count])
+            position += count
+            if searches[index].done and finished is not None:
+                finished(index, searches[index].found[:searches[index].episodes])
+        active = [index for index in active if not searches[index].done]
+    return [state.found[:state.episodes] for state in searches]
 
 
 # ---------------------------------------------------------------------------------------------- command line
@@ -658,21 +752,26 @@ def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], 
     return cells
 
 
-def _search_cell(job: tuple[dict[str, Any], int, int, str]) -> list[Found]:
-    cell, episodes, seed, optimiser = job
-    margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
-    return search(cell, episodes=episodes, seed=seed, margin=margin, optimiser=optimiser)
+def cell_margin(cell: dict[str, Any]) -> float:
+    """The margin of a cell's filter [m] (a job: building an MPC takes a while)."""
+    return make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
 
 
-def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found], dict[str, dict[str, Any]]]:
-    """Every episode found, and a summary per robot and filter; prints a line per cell as it finishes."""
-    everything: list[Found] = []
+def _cell_key(cell: dict[str, Any]) -> str:
+    return f"{cell['robot']}/{cell['filter_name']}" + ("/cover" if cell.get("settings") else "")
+
+
+def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
+    label = {key: value for key, value in cells[index].items() if key not in ("geometry", "nominal") and value != {}}
+    return f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m"
+
+
+def _summary(cells: Sequence[dict[str, Any]], results: Sequence[list[Found]]) -> dict[str, dict[str, Any]]:
+    """A summary per robot and filter."""
     summary: dict[str, dict[str, Any]] = {}
-    for index, (cell, found) in enumerate(zip(cells, results, strict=True)):
-        everything.extend(found)
-        key = f"{cell['robot']}/{cell['filter_name']}" + ("/cover" if cell.get("settings") else "")
-        entry = summary.setdefault(key, dict(episodes=0, valid=0, contacts=0, violations=0,
-                                             worst_clearance_minus_margin=math.inf))
+    for cell, found in zip(cells, results, strict=True):
+        entry = summary.setdefault(_cell_key(cell), dict(episodes=0, valid=0, contacts=0, violations=0,
+                                                         worst_clearance_minus_margin=math.inf))
         for item in found:
             entry["episodes"] += 1
             if item.outcome.valid:
@@ -681,10 +780,7 @@ def _collect(cells: Sequence[dict[str, Any]], results: Any) -> tuple[list[Found]
                 entry["violations"] += int(item.outcome.violated)
                 entry["worst_clearance_minus_margin"] = min(entry["worst_clearance_minus_margin"],
                                                             item.outcome.min_clearance - item.outcome.margin)
-        label = {key: value for key, value in cell.items() if key not in ("geometry", "nominal") and value != {}}
-        print(f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m",
-              flush=True)
-    return everything, summary
+    return summary
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
@@ -700,7 +796,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
-    parser.add_argument("--workers", type=int, default=1, help="processes searching cells in parallel")
+    add_sweep_options(parser)
     parser.add_argument("--json", help="write the summary and the worst cases here")
     parser.add_argument("--replay", help="replay one episode given as the JSON line printed by a search")
     args = parser.parse_args(argv)
@@ -715,15 +811,25 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
     per_cell = max(1, args.episodes // len(cells))
     start = time.perf_counter()
-    jobs = [(cell, per_cell, args.seed * 100_003 + index, args.optimiser) for index, cell in enumerate(cells)]
-    if args.workers > 1:
-        import multiprocessing
+    print(f"{per_cell * len(cells)} episodes: {len(cells)} cells x {per_cell}, on {where(args)}", flush=True)
+    settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
+    with JobRunner(**settings, description="falsify") as runner, \
+            Progress(per_cell * len(cells), "falsify", enabled=not args.no_progress) as progress:
+        margins = runner.map(cell_margin, cells)
+        searches = [CellSearch(cell, episodes=per_cell, seed=args.seed * 100_003 + index, margin=margin,
+                               optimiser=args.optimiser)
+                    for index, (cell, margin) in enumerate(zip(cells, margins, strict=True))]
 
-        with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
-            results = pool.imap(_search_cell, jobs)
-            everything, summary = _collect(cells, results)
-    else:
-        everything, summary = _collect(cells, map(_search_cell, jobs))
+        def finished(index: int, found: list[Found]) -> None:
+            for _ in found:
+                progress.update()
+            print(_cell_line(index, cells, found), flush=True)
+
+        results = search_cells(searches, runner, finished)
+    if args.resume:
+        print(f"resumed: {runner.reused} jobs taken from {args.results}")
+    everything = [item for found in results for item in found]
+    summary = _summary(cells, results)
     elapsed = time.perf_counter() - start
     print()
     print("| robot/filter | episodes | valid | contacts | below margin - 1 cm | worst clearance - margin [m] |")
@@ -745,4 +851,8 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    # Run the module's own copy (``benchmarks.falsify``), not ``__main__``'s: the jobs and their outcomes
+    # must be the classes a Ray worker and a resumed run import, whichever way the falsifier was started.
+    from benchmarks import falsify
+
+    raise SystemExit(falsify.main())

@@ -34,6 +34,8 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed, wait
 from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
 from typing import IO, Any, TypeVar
 
 import numpy as np
@@ -293,6 +295,9 @@ class JobRunner:
         resume: reuse the results already in ``results``.
         progress: show the progress of each batch.
         description: the progress label.
+        ship: packages Ray uploads to its workers (``runtime_env`` ``py_modules``) when this runner
+            starts or joins Ray: code the jobs import that is not installed there, such as a checkout's
+            ``benchmarks``. A Ray already initialised in this process keeps its own runtime environment.
 
     Raises:
         InvalidConfig: ``workers`` is not an integer >= 1, an address without Ray, ``resume``
@@ -302,7 +307,7 @@ class JobRunner:
 
     def __init__(self, workers: int | None = None, *, backend: str = "process", address: str | None = None,
                  results: str | os.PathLike[str] | None = None, resume: bool = False, progress: bool = True,
-                 description: str = "episodes") -> None:
+                 description: str = "episodes", ship: Sequence[ModuleType] = ()) -> None:
         self.backend = choice("backend", backend, BACKENDS)
         self.workers = (os.cpu_count() or 1) if workers is None else integer("workers", workers, low=1)
         if address is not None and self.backend != "ray":
@@ -313,6 +318,7 @@ class JobRunner:
         self.address = address
         self.progress = progress
         self.description = description
+        self.ship = tuple(ship)
         self.results = None if results is None else ResultsFile(results, resume=resume)
         self.reused = 0
         """Jobs taken from the results file instead of being run, over every batch so far."""
@@ -414,6 +420,9 @@ class JobRunner:
                                        "configure_logging": False}
             if self.address is None:
                 options["num_cpus"] = self.workers
+            if self.ship:
+                options["runtime_env"] = {"py_modules": [str(Path(module.__file__).parent)
+                                                         for module in self.ship if module.__file__]}
             try:
                 with _quiet_stderr():
                     ray.init(**options)
