@@ -58,8 +58,8 @@ wheel) and the ``safenav`` this process imported, so the workers run the very co
 (a checkout's, not an older installed one). Compiled dependencies must be installed on every node."""
 
 
-def sweep_parser(prog: str, description: str,
-                 add_options: Callable[[argparse.ArgumentParser], None]) -> argparse.ArgumentParser:
+def sweep_parser(prog: str, description: str, add_options: Callable[[argparse.ArgumentParser], None], *,
+                 real_time: bool = False) -> argparse.ArgumentParser:
     """A sweep's command line: its own options, then where it runs (``--workers``, ``--backend``,
     ``--address``, ``--results``, ``--resume``, ``--no-progress``), then ``--json PATH``.
 
@@ -67,10 +67,15 @@ def sweep_parser(prog: str, description: str,
         prog: the program name (``safenav bench NAME`` passes its own).
         description: the help text (the module's docstring, kept as written).
         add_options: adds the sweep's own options to the parser.
+        real_time: add ``--real-time`` (keep the MPC's compute budget; see
+            :func:`~safenav.experiments.runner.reproducible_settings`).
     """
     parser = argparse.ArgumentParser(prog=prog, description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_options(parser)
+    if real_time:
+        parser.add_argument("--real-time", action="store_true",
+                            help="keep the MPC's compute budget (results then depend on the machine's load)")
     add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser

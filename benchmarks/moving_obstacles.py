@@ -143,7 +143,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 def build_parser(prog: str = "moving_obstacles") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    return sweep_parser(prog, __doc__, _add_options)
+    return sweep_parser(prog, __doc__, _add_options, real_time=True)
 
 
 def _add_options(parser: argparse.ArgumentParser) -> None:
@@ -162,16 +162,10 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=argument_type(positive), default=20.0,
                         help="episode length [s] (default: 20)")
     parser.add_argument("--quick", action="store_true", help="rosbot, cbf, speeds 0.5 and 1.5, 4 walkers, 2 seeds")
-    parser.add_argument("--real-time", action="store_true",
-                        help="keep the MPC's compute budget (results then depend on the machine's load)")
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "moving_obstacles") -> int:
-    """Run the sweep; print the table; write the JSON asked for.
-
-    Returns:
-        The exit code: 0, or 2 on bad usage (an unknown name, a bad number, an unwritable output).
-    """
+    """Run the sweep; print the table; write the JSON asked for: exit code 0, or 2 on bad usage."""
     return run_cli(build_parser(prog), argv, _run)
 
 

@@ -115,11 +115,7 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "robustness") -> int:
-    """Run the fault sweep; print the tables; write the JSON asked for.
-
-    Returns:
-        The exit code: 0, or 2 on bad usage (an unknown name, a bad number, an unwritable output).
-    """
+    """Run the fault sweep; print the tables; write the JSON asked for: exit code 0, or 2 on bad usage."""
     return run_cli(build_parser(prog), argv, _sweep)
 
 

@@ -331,7 +331,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 def build_parser(prog: str = "stop_metrics") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    return sweep_parser(prog, __doc__, _add_options)
+    return sweep_parser(prog, __doc__, _add_options, real_time=True)
 
 
 def _add_options(parser: argparse.ArgumentParser) -> None:
@@ -348,16 +348,10 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stay", type=argument_type(positive), default=5.0,
                         help="step-in: how long the walker stands in the path [s] (default: 5, as in Nav2's bag)")
     parser.add_argument("--quick", action="store_true", help="one seed")
-    parser.add_argument("--real-time", action="store_true",
-                        help="keep the MPC's compute budget (results then depend on the machine's load)")
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "stop_metrics") -> int:
-    """Run the scripted episodes; print the table; write the JSON asked for.
-
-    Returns:
-        The exit code: 0, or 2 on bad usage (an unknown name, a bad number, an unwritable output).
-    """
+    """Run the scripted episodes; print the table; write the JSON asked for: exit code 0, or 2 on bad usage."""
     return run_cli(build_parser(prog), argv, _run)
 
 
