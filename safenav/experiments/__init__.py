@@ -5,7 +5,10 @@ module         holds
 =============  =========================================================================
 ``specs``      :class:`Cell`, :class:`EpisodeSpec` (checked on construction), :func:`matrix`,
                :func:`episode_specs`
-``runner``     :func:`run_spec`, :func:`run_specs` (a pool of processes, progress), :class:`EpisodeOutcome`
+``runner``     :func:`run_spec`, :func:`run_specs` (a pool of processes or Ray, progress),
+               :class:`EpisodeOutcome`, :class:`JobRunner` (batches on one pool or Ray, resume)
+``results``    :class:`~safenav.experiments.results.ResultsFile`: finished jobs streamed to a JSON-lines
+               file, so an interrupted sweep resumes (``docs/distributed.md``)
 ``stats``      :func:`wilson_interval`, :func:`cell_record`, :func:`cell_records`
 ``tables``     :func:`outcome_table`, :func:`timing_table`, :func:`markdown`, :data:`FILTER_LABELS`
 =============  =========================================================================
@@ -28,7 +31,7 @@ Figures of outcomes and records are in :mod:`safenav.plots` (experiments import 
 built on it.
 """
 
-from safenav.experiments.runner import EpisodeOutcome, Progress, run_spec, run_specs
+from safenav.experiments.runner import EpisodeOutcome, JobRunner, Progress, run_spec, run_specs
 from safenav.experiments.specs import Cell, EpisodeSpec, episode_specs, matrix
 from safenav.experiments.stats import DEADLOCK_LIMIT, cell_record, cell_records, pooled_records, wilson_interval
 from safenav.experiments.tables import (
@@ -50,6 +53,7 @@ __all__ = [
     "Cell",
     "EpisodeOutcome",
     "EpisodeSpec",
+    "JobRunner",
     "Progress",
     "cell_record",
     "cell_records",
