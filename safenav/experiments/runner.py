@@ -428,8 +428,9 @@ class JobRunner:
                     ray.init(**options)
             except ConnectionError as error:
                 raise InvalidConfig(f"no Ray cluster answers at address={self.address!r} ({error}); expected the "
-                                    "address of a running cluster (`ray start --head` on its head node), or no "
-                                    "address for a local Ray") from error
+                                    "address of a running cluster (`ray start --head` on its head node; one with "
+                                    "token authentication also needs RAY_AUTH_MODE=token and its token, see "
+                                    "docs/distributed.md), or no address for a local Ray") from error
             self._ray_started = True
         self._ray = ray
         return ray
