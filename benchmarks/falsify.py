@@ -44,7 +44,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import SHIPPED, where
+from benchmarks.common import SHIPPED, run_cli, where
 from safenav._optional import require
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter
@@ -784,7 +784,7 @@ def _summary(cells: Sequence[dict[str, Any]], results: Sequence[list[Found]]) ->
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog=prog or "falsify", description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=2000, help="episodes in all (spread over the cells)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robots", nargs="+", default=["rosbot", "puzzlebot", "m2wr"])
@@ -799,7 +799,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     add_sweep_options(parser)
     parser.add_argument("--json", help="write the summary and the worst cases here")
     parser.add_argument("--replay", help="replay one episode given as the JSON line printed by a search")
-    args = parser.parse_args(argv)
+    return run_cli(parser, argv, _run)
+
+
+def _run(args: argparse.Namespace) -> int:
     if args.replay:
         outcome, log = run(Episode.from_json(args.replay), record=True)
         for row in log:
@@ -810,9 +813,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
     per_cell = max(1, args.episodes // len(cells))
+    settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()
     print(f"{per_cell * len(cells)} episodes: {len(cells)} cells x {per_cell}, on {where(args)}", flush=True)
-    settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     with JobRunner(**settings, description="falsify") as runner, \
             Progress(per_cell * len(cells), "falsify", enabled=not args.no_progress) as progress:
         margins = runner.map(cell_margin, cells)

@@ -116,11 +116,14 @@ def test_a_file_that_is_not_a_results_file_is_a_clear_error(tmp_path):
         run_jobs(abs, [1], 1, progress=False, results=results, resume=True)
 
 
-def test_resume_without_a_results_file_is_a_clear_error_on_the_command_line(capsys):
-    from benchmarks import stop_metrics
+@pytest.mark.parametrize("name", ["collision_rates", "robustness", "stop_metrics", "moving_obstacles", "falsify"])
+def test_resume_without_a_results_file_is_a_clear_error_on_the_command_line(name, capsys):
+    import importlib
 
-    assert stop_metrics.main(["--resume", "--quick"]) == 2
-    assert "--resume needs the sweep's results file; expected --results PATH as well" in capsys.readouterr().err
+    benchmark = importlib.import_module(f"benchmarks.{name}")
+    assert benchmark.main(["--resume"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == f"{name}: error: --resume needs the sweep's results file; expected --results PATH as well"
 
 
 @pytest.mark.sim
