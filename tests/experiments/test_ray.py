@@ -65,7 +65,9 @@ def test_ray_gives_the_process_pools_outcomes(local_ray):
 def test_the_collision_benchmark_on_ray_prints_the_process_pools_tables(local_ray, tmp_path, capsys):
     from benchmarks import collision_rates
 
-    argv = ["--scenarios", "stop_at_wall,clutter_rosbot", "--filters", "none,cbf,mpc", "--seeds", "2",
+    # Not the MPC: the collision matrix runs it with its compute budget, so on a loaded machine a late call
+    # changes its episode on any backend (run twice on the pool, it can differ too).
+    argv = ["--scenarios", "stop_at_wall,clutter_rosbot", "--filters", "none,zones,cbf,cbf+escape", "--seeds", "2",
             "--duration", "1.5", "--workers", "2", "--no-progress"]
     tables = {}
     for backend in ("process", "ray"):
@@ -82,7 +84,7 @@ def test_falsifier_generations_on_ray_search_what_the_serial_search_finds(local_
     from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, CellSearch, search_cells
 
     cells = [dict(robot="rosbot", filter_name="cbf", base="ramp", dt=0.05, give_velocity=True),
-             dict(robot="puzzlebot", filter_name="mpc", base="lag", dt=0.1, give_velocity=True)]
+             dict(robot="m2wr", filter_name="cbf", base="lag", dt=0.1, give_velocity=True)]   # the CBF: no deadline
 
     def searches():
         return [CellSearch(dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS), episodes=10, seed=index,
