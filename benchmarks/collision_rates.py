@@ -36,6 +36,7 @@ if __package__ in (None, ""):   # python benchmarks/NAME.py: import from this ch
 
 import argparse
 import csv
+import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
@@ -52,7 +53,7 @@ from safenav.experiments import (
     run_spec,
     timing_table,
 )
-from safenav.experiments.runner import spec_cost
+from safenav.experiments.runner import reproducible_settings, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
 from safenav.filters import FILTER_NAMES, FILTERS
@@ -71,7 +72,7 @@ QUICK: Mapping[str, Any] = MappingProxyType(
 
 def build_parser(prog: str = "collision_rates") -> argparse.ArgumentParser:
     """The benchmark's options."""
-    return sweep_parser(prog, __doc__, _add_options)
+    return sweep_parser(prog, __doc__, _add_options, real_time=True)
 
 
 def _add_options(parser: argparse.ArgumentParser) -> None:
@@ -114,6 +115,8 @@ def _sweep(args: argparse.Namespace) -> int:
         if path:
             writable_file(what, path)
     specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
+    if not args.real_time:   # the same seed, the same episode, whatever the machine's load
+        specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter)) for spec in specs]
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}")
