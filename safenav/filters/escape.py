@@ -18,11 +18,12 @@ nominal by an escape command until the nominal's way is clear again:
    with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
    towards the chosen side when something is ahead, or when the filter blocks the following.
 4. **Back out** when forward is blocked and the rear is seen and free.
-5. **Through a gap.** While following, a clear corridor within ``gap_window`` of the m-line
-   (below) with obstacle points on both sides near it (within ``gap_band`` of its edges: a
-   passage, a door, not open floor) is a gap the body fits through: the escape turns into it
-   and drives ``clear_distance`` along it, then hands back (if the filter blocks it, it follows
-   on and looks again after ``gap_retry``).
+5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
+   clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
+   sides near it (within ``gap_band`` of its edges: a passage, a door, not open floor), is a
+   gap the body fits through: the escape turns into it, aims through its middle, drives
+   ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
+   looks again after ``gap_retry``).
 6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either in
    the direction the robot was heading when the deadlock began (tracked by integrating the
    commands: a bug algorithm's "m-line"), or in the direction of the nominal's own arc over one
@@ -351,13 +352,17 @@ class Escape:
 
     def _passages(self, known: np.ndarray, scans: tuple[LaserScan, ...],
                   headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For headings since the deadlock began [rad]: which are passages (clear, with points within
-        ``gap_band`` of both edges), and the room on the tighter side [m]."""
+        """For headings since the deadlock began [rad]: which are passages, and the room on their tighter side [m].
+
+        A passage has points within ``gap_band`` of both edges of its corridor over ``clear_distance``
+        (a door, not open floor), and its corridor is clear for twice that (it leads somewhere: the
+        inside of a U-shaped trap is no way out of it).
+        """
         directions = headings - self._turned
         cfg, width = self.config, self.clear_half_width
         left, right = _side_room(known, directions, cfg.clear_distance, width + cfg.gap_band)
-        passage = self._seen(scans, directions) & (np.minimum(left, right) >= width) & np.isfinite(left) & \
-            np.isfinite(right)
+        room = np.minimum(*_side_room(known, directions, 2.0 * cfg.clear_distance, width))
+        passage = self._seen(scans, directions) & (room >= width) & np.isfinite(left) & np.isfinite(right)
         return passage, np.minimum(left, right)
 
     def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray) -> np.ndarray:
