@@ -10,10 +10,11 @@ nominal by an escape command until the nominal's way is clear again:
    request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it let through)
    for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can swing the
    heading to and fro in front of a wall without ever reporting a stall).
-2. **Side, once per deadlock.** Towards the opening nearest the way the robot was going: the
-   nearest (in bearing) place where two neighbouring scan points are farther apart than the
-   body's corridor (``2 clear_half_width``), that is, an edge of the blocking obstacle or a door
-   beside it; without one, the side with more free space, or the side the nominal turns to.
+2. **Side, once per deadlock.** Towards the opening nearest the way the nominal was heading
+   (the chord of its arc over one second): the nearest (in bearing) place where two
+   neighbouring scan points are farther apart than the body's corridor (``2 clear_half_width``),
+   that is, an edge of the blocking obstacle or a door beside it; without one, the side with
+   more free space, or the side the nominal turns to.
 3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
    with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
    towards the chosen side when something is ahead, or when the filter blocks the following.
@@ -24,9 +25,9 @@ nominal by an escape command until the nominal's way is clear again:
    gap the body fits through: the escape turns into it, aims through its middle, drives
    ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
    looks again after ``gap_retry``).
-6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either in
-   the direction the robot was heading when the deadlock began (tracked by integrating the
-   commands: a bug algorithm's "m-line"), or in the direction of the nominal's own arc over one
+6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either
+   along the m-line (the way the robot was heading when the deadlock began, tracked by
+   integrating the commands, as in a bug algorithm), or in the direction of the nominal's own arc over one
    second when it drives forward; or after ``max_time`` (the next deadlock then tries the other
    side).
 
@@ -239,7 +240,8 @@ class Escape:
         """Choose a side once for this deadlock (the other one after a timed-out escape)."""
         left = _free(points, 0.25 * math.pi, 0.75 * math.pi)
         right = _free(points, -0.75 * math.pi, -0.25 * math.pi)
-        opening = self._nearest_opening(scans)
+        intent = _intent(nominal)
+        opening = self._nearest_opening(scans, intent)
         if opening is not None:
             side = 1 if opening > 0.0 else -1
         elif abs(left - right) > 0.2:
@@ -254,8 +256,9 @@ class Escape:
         self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
 
-    def _nearest_opening(self, scans: tuple[LaserScan, ...]) -> float | None:
-        """Bearing [rad] of the opening nearest straight ahead, within ``gap_window``; ``None`` if none.
+    def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float) -> float | None:
+        """Bearing [rad] of the opening nearest the ``intent`` bearing [rad], within ``gap_window`` of it;
+        ``None`` if none.
 
         An opening lies between two neighbouring points of one scan (in beam order, so across
         beams with no return) farther apart than ``2 clear_half_width``, the nearer of them within
@@ -273,9 +276,11 @@ class Escape:
             if middle.shape[0] == 0:
                 continue
             bearings = np.arctan2(middle[:, 1], middle[:, 0])
-            bearing = float(bearings[int(np.argmin(np.abs(bearings)))])
-            if abs(bearing) <= self.config.gap_window and (best is None or abs(bearing) < abs(best)):
-                best = bearing
+            off = np.abs(wrap_angle(bearings - intent))
+            nearest = int(np.argmin(off))
+            if off[nearest] <= self.config.gap_window and (
+                    best is None or off[nearest] < abs(wrap_angle(best - intent))):
+                best = float(bearings[nearest])
         return best
 
     def _travel(self, distance: float) -> None:
@@ -393,7 +398,7 @@ class Escape:
             return True      # the way the robot was going when it got stuck is clear again
         if nominal[0] <= 0.0:
             return False
-        return self._clear(known, scans, float(np.clip(0.5 * nominal[1], -0.5 * math.pi, 0.5 * math.pi)))   # 1 s
+        return self._clear(known, scans, _intent(nominal))
 
 
 def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> float:
@@ -405,6 +410,11 @@ def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> 
     if not inside.any():
         return horizon
     return min(float(np.min(np.hypot(points[inside, 0], points[inside, 1]))), horizon)
+
+
+def _intent(nominal: np.ndarray) -> float:
+    """The bearing [rad] the nominal is heading for: the chord of its arc over one second, within +-pi/2."""
+    return float(np.clip(0.5 * nominal[1], -0.5 * math.pi, 0.5 * math.pi))
 
 
 def _fan(window: float) -> np.ndarray:
