@@ -66,7 +66,8 @@ class CBFConfig:
         gamma: decay of the discrete-time barrier condition, in (0, 1]; default ``min(1, a_max dt / v_max)``.
         far_gamma: largest fraction of its own barrier any point may lose per period, in
             (0, 1]; default 1 (only the minimum condition). ``far_gamma = gamma`` gives the
-            classic point-wise condition ``h(o, x+) >= (1 - gamma) h(o, x)``.
+            classic point-wise condition ``h(o, x+) >= (1 - gamma) h(o, x)``, which the filter
+            always uses when the velocity is given (acceleration limits).
         margin: clearance kept between the body and every obstacle point [m]; default
             ``0.02 m + 2 noise_std + 1 m x angle_increment``.
         lookahead: distance of the control points ahead of the disk centres [m]; default
@@ -197,8 +198,8 @@ class CBFSafetyFilter(SafetyFilter):
     **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
     ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
     the period bounded exactly through auxiliaries ``t_v >= |v|``, ``t_omega >= |omega|``);
-    with ``velocity`` given, ``braking`` (approach speed caps: one period of reaction plus the
-    lag, then braking at ``a_max``, must stop within each barrier) and ``sweep`` (speed along
+    with ``velocity`` given, ``braking`` (one period of reaction plus the lag, then the speed
+    braking at ``a_max`` and the yaw rate at ``alpha_max``, must stop within each barrier) and ``sweep`` (speed along
     the heading capped for points the heading can still swing towards while braking), each
     written for every mean velocity a base between the current velocity and the command can
     have (:func:`~safenav.filters.rows.ramp_corners`); ``gap`` (no part of the outline moves
@@ -211,7 +212,9 @@ class CBFSafetyFilter(SafetyFilter):
     row, status ``SLACK``), each tier only when no command keeps the later ones; the
     unknown-region rows and the box are hard, and when they cannot all hold the base brakes at
     its limits (status ``BRAKING``). A pair already inside the margin is left at its own rate
-    ``h(x+) >= (1 - gamma) h(x)``, whatever the smallest barrier.
+    ``h(x+) >= (1 - gamma) h(x)``, whatever the smallest barrier; with ``velocity`` every pair
+    keeps its own rate (``far_gamma`` at most ``gamma``), so that a point is never approached
+    faster than the base can slow down to once it becomes the nearest.
 
     **Unknown region and memory** (:mod:`safenav.filters.perception`). Unknown space is
     never free. It is measured from the body's outline and each lidar's mount, not from the
@@ -330,9 +333,12 @@ class CBFSafetyFilter(SafetyFilter):
             near = distance - uncertainty <= reach + self._extent[1]
             if not near.all():
                 points, uncertainty = points[near], uncertainty[near]
-        # Rows leave one period's travel along the heading free where a point allows it (rows.slide).
-        tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma,
-                    travel=max(abs(float(lower[0])), abs(float(upper[0]))) * period)
+        # Rows leave the travel along the heading free where a point allows it (rows.slide): one period's
+        # travel, or with the velocity the braking distance, since every pair then keeps its own rate
+        # (_own_rate) and a wall ahead-beside would otherwise be approached, point by point, at that rate.
+        speed = max(abs(float(lower[0])), abs(float(upper[0])))
+        travel = speed * period if velocity is None else speed * reaction + speed * speed / (2.0 * robot.a_max)
+        tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma, travel=travel)
         if self._polygon is not None:
             kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
@@ -348,7 +354,7 @@ class CBFSafetyFilter(SafetyFilter):
             geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
                                                self.margin, kappa, limit, **tilt)
         min_barrier = float(per_point.min()) if per_point.size else math.inf
-        barrier = families.barrier_rows(geo, self.gamma, self.far_gamma, period, smallest=min_barrier)
+        barrier = families.barrier_rows(geo, self.gamma, self._own_rate(velocity), period, smallest=min_barrier)
         obstacle = barrier
         if velocity is not None:
             # The braking and sweep rows can bind only within the braking reach (their right side, the
@@ -358,17 +364,11 @@ class CBFSafetyFilter(SafetyFilter):
             near = geo.barrier + self._allowance <= self._braking_reach(lower, upper, velocity, period, reaction,
                                                                         pair_distance)
             close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
-            braking = families.braking_rows(close, robot.a_max, reaction, self._allowance)
-            h = barrier.h.copy()
-            family = barrier.family.copy()
-            index = np.flatnonzero(near)
-            tighter = braking.h < h[index]
-            h[index[tighter]] = braking.h[tighter]
-            family[index[tighter]] = braking.family[tighter]
-            obstacle = families.Rows(barrier.G, h, barrier.point, family)
+            braking = families.braking_rows(close, robot.a_max, robot.alpha_max, reaction, self._allowance,
+                                            box=(lower, upper))
             sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
                                          self._allowance)
-            obstacle = families.stack(obstacle, sweep)
+            obstacle = families.stack(barrier, braking, sweep)
             obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
@@ -413,15 +413,39 @@ class CBFSafetyFilter(SafetyFilter):
 
     def _braking_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
                        reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
-        """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box."""
-        approach = self._approach_bound(lower, upper, velocity, period, distance)
-        return approach * reaction + approach**2 / (2.0 * self.robot.a_max) + 1e-9
+        """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box.
+
+        A row's left side is at most ``A + W |k_omega|`` with ``A`` the speed part (the speed, its
+        arc terms) and ``W`` the turn (:func:`~safenav.filters.rows.braking_coefficient`: ``|k_v| <= 1``,
+        and ``|k_omega|`` that of the farthest body point braking at ``alpha_max``). Splitting the
+        right side in the shares ``sqrt(D_A)`` and ``sqrt(D_W)`` of the two braking distances ``D``,
+        neither can exceed its share beyond ``(sqrt(D_A) + sqrt(D_W))^2``.
+        """
+        robot = self.robot
+        speed = max(abs(lower[0]), abs(upper[0]), abs(velocity[0]) if velocity is not None else 0.0)
+        turn = max(abs(lower[1]), abs(upper[1]), abs(velocity[1]) if velocity is not None else 0.0)
+        kappa = 0.5 * robot.omega_max * period
+        arc_lever = self._arm if self._polygon is None else distance
+        along = speed * (1.0 + kappa) + kappa * turn * arc_lever
+        speed_part = along * reaction + along**2 / (2.0 * robot.a_max)
+        turn_part = self._arm * (turn * reaction + turn**2 / (2.0 * robot.alpha_max))
+        return (np.sqrt(speed_part) + math.sqrt(turn_part)) ** 2 + 1e-9
+
+    def _own_rate(self, velocity: np.ndarray | None) -> float:
+        """Largest share of its own barrier a pair may lose per period.
+
+        With the velocity (acceleration limits) every pair is held to ``gamma``: a pair approached
+        faster than ``gamma h / dt`` while another is nearest would, once it becomes the nearest,
+        need a deceleration the base does not have (``gamma = a_max dt / v_max`` makes the
+        exponential approach brake at most at ``a_max``). Without it, ``far_gamma``.
+        """
+        return min(self.far_gamma, self.gamma) if velocity is not None else self.far_gamma
 
     def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
                        period: float, reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
         """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
         approach = self._approach_bound(lower, upper, velocity, period, distance)
-        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / min(self.far_gamma, 1.0) + 1e-9
+        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / self._own_rate(velocity) + 1e-9
         if velocity is not None:
             reach = np.maximum(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
         return reach

@@ -39,6 +39,7 @@ __all__ = [
     "abs_rows",
     "barrier_rows",
     "blind_rows",
+    "braking_coefficient",
     "braking_rows",
     "braking_swing",
     "gap_rows",
@@ -390,26 +391,98 @@ def stopping_speed(barrier: np.ndarray, accel: float, reaction: float) -> np.nda
     return np.sqrt((accel * reaction) ** 2 + 2.0 * accel * reach) - accel * reaction
 
 
-def braking_rows(geo: Geometry, accel: float, reaction: float, allowance: float = 0.0) -> Rows:
-    """Approach speed caps that keep braking possible, one row per pair (soft; needs the velocity).
+def braking_coefficient(coefficient: np.ndarray, barrier: np.ndarray, accel: float | np.ndarray, reference: float,
+                        reaction: float) -> np.ndarray:
+    """Row coefficient of a command component whose braking must stop within ``barrier``.
 
-    Invariant: the approach rate of every control point towards every point stays below the
-    speed from which the base, reacting for one period and its lag and then braking at
-    ``a_max``, stops within that pair's barrier. With the rows holding at every period the
-    braking command remains available: a base that approaches a point head-on at
-    ``s`` with ``s reaction + s^2 / (2 a) <= h`` and brakes keeps satisfying the cap.
+    A component ``x`` of the command (``v`` [m/s] or ``omega`` [rad/s]) contributes
+    ``c x`` to a pair's approach rate and brakes at ``accel``; reacting for ``reaction`` and
+    then braking, it carries the pair ``c (x reaction + x |x| / (2 accel))`` closer, so it
+    stops within ``barrier`` iff ``c x <= |c| X`` with ``X = stopping_speed(barrier / |c|,
+    accel, reaction)``. Note that the *approach rate* ``c x`` decelerates at ``|c| accel``,
+    not at ``accel``: an oblique point (``|c| < 1``) needs a lower approach rate than a
+    point head-on. The returned ``k`` writes that condition as ``k x <= S`` with ``S =
+    stopping_speed(barrier, reference, reaction)`` (so that rows stay in [m/s] and ``k = c``
+    for a head-on component braking at ``reference``)::
 
-    Assumption: the base decelerates at ``a_max`` once commanded to, after at most
-    ``reaction`` = one period plus its lag time constant.
+        k = sign(c) (sqrt(c^2 a^2 T^2 + 2 a^2 h |c| / accel) + |c| a T) / (sqrt(a^2 T^2 + 2 a h) + a T)
+
+    with ``a = reference``, ``T = reaction``, ``h = max(barrier, 0)``; at ``h = 0`` it is ``c``
+    (with ``T > 0``), and it tends to 0 with ``c``.
+    """
+    h = np.maximum(barrier, 0.0)
+    magnitude = np.abs(coefficient)
+    a, T = reference, reaction
+    numerator = np.sqrt((magnitude * a * T) ** 2 + 2.0 * a * a * h * magnitude / accel) + magnitude * a * T
+    denominator = np.sqrt((a * T) ** 2 + 2.0 * a * h) + a * T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scaled = np.where(denominator > 0.0, numerator / np.where(denominator > 0.0, denominator, 1.0), magnitude)
+    return np.sign(coefficient) * scaled
+
+
+def braking_rows(geo: Geometry, accel: float, alpha: float, reaction: float, allowance: float = 0.0,
+                 box: tuple[np.ndarray, np.ndarray] | None = None) -> Rows:
+    """Approach caps that keep braking possible, up to three rows per pair (soft; needs the velocity).
+
+    The approach rate of a pair is ``c_v v + c_omega omega`` (``c = geo.approach``). Braking
+    after one period and the lag (``reaction``), ``v`` decelerates at ``a_max`` and ``omega``
+    at ``alpha_max``, independently, so the pair closes by at most
+    ``D = D_v + D_omega``, ``D_x = (c_x x)^+ (T + |x| / (2 accel_x))``. Each ``D_x`` is convex in
+    ``s_x = (c_x x)^+``, so ``D <= h`` holds on the triangle ``s_v / S_v + s_omega / S_omega
+    <= 1`` (``S_x`` the largest ``s_x`` alone that stops within ``h``, see
+    :func:`braking_coefficient`), which with the positive parts is three linear rows: both
+    terms, ``v``'s alone, ``omega``'s alone. A row is left out when another implies it for
+    every command in ``box`` (a term of one sign over the whole box).
+
+    Invariant: from any command the rows allow, a base that reacts for ``reaction`` and then
+    brakes at its limits closes every pair's half-plane by at most its barrier (plus
+    ``allowance``), to first order in the heading change (the heading's own change is the
+    :func:`sweep_rows`' part; the arc terms bound the period's second-order motion).
+
+    Assumption: the base decelerates at ``a_max`` and ``alpha_max`` once commanded to, after at
+    most ``reaction`` = one period plus its lag time constant.
 
     ``allowance`` [m] (the range-noise part of the margin) is added to every barrier: the
     base stays able to stop before the margin less the allowance, so that noise that puts a
     reading just inside the margin does not forbid every approach (the barrier rows still
     push the base back out of the margin).
     """
-    everything = np.ones(geo.barrier.size, dtype=bool)
-    return _rows(_approach_block(geo, everything), stopping_speed(geo.barrier + allowance, accel, reaction),
-                 geo.point, "braking")
+    count = geo.barrier.size
+    if not count:
+        return stack()
+    barrier = geo.barrier + allowance
+    limit = stopping_speed(barrier, accel, reaction)
+    k_v = braking_coefficient(geo.approach[:, 0], barrier, accel, accel, reaction)
+    k_omega = braking_coefficient(geo.approach[:, 1], barrier, alpha, accel, reaction)
+    if box is None:
+        always_v = always_omega = never_v = never_omega = np.zeros(count, dtype=bool)
+    else:
+        lower, upper = box
+        # the sign of each term over the whole box: c x >= 0 (always approaching) or <= 0 (never)
+        always_v = np.minimum(k_v * lower[0], k_v * upper[0]) >= 0.0
+        never_v = np.maximum(k_v * lower[0], k_v * upper[0]) <= 0.0
+        always_omega = np.minimum(k_omega * lower[1], k_omega * upper[1]) >= 0.0
+        never_omega = np.maximum(k_omega * lower[1], k_omega * upper[1]) <= 0.0
+    # a term with a zero coefficient is both: it needs no row of its own
+    zero_v, zero_omega = k_v == 0.0, k_omega == 0.0
+    always_v, never_v = always_v | zero_v, never_v | zero_v
+    always_omega, never_omega = always_omega | zero_omega, never_omega | zero_omega
+    both = ~never_v & ~never_omega
+    v_alone = ~always_omega & ~never_v
+    omega_alone = ~always_v & ~never_omega
+    # a pair that no command can make approach still gets its combined row (the arc terms)
+    both |= ~(both | v_alone | omega_alone)
+    blocks = []
+    for mask, use_v, use_omega in ((both, True, True), (v_alone, True, False), (omega_alone, False, True)):
+        index = np.flatnonzero(mask)
+        G = np.zeros((index.size, 4))
+        if use_v:
+            G[:, 0] = k_v[index]
+        if use_omega:
+            G[:, 1] = k_omega[index]
+        G[:, 2:] = geo.arc[index]
+        blocks.append(_rows(G, limit[index], geo.point[index], "braking"))
+    return stack(*blocks)
 
 
 def braking_swing(velocity: np.ndarray, alpha: float, dt: float, reaction: float) -> float:
@@ -437,13 +510,16 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
     (:func:`braking_swing`). A point within ``Delta`` of the
     heading (or of the reverse heading) may come to lie straight ahead before the base
     stops, so the speed along the heading is capped as if the base already faced it:
-    ``sign v cos(max(|bearing| - Delta, 0)) + arc terms <= stopping_speed(h)``.
+    ``sign v cos(max(|bearing| - Delta, 0)) + arc terms <= stopping_speed(h)``, the cosine
+    entering through :func:`braking_coefficient` (a heading at angle ``phi`` from the point
+    closes it by ``cos(phi)`` of the braking distance).
 
     Assumption: as :func:`braking_rows`; the yaw rate decelerates at ``alpha_max``.
     ``allowance``: as :func:`braking_rows`.
     """
     sweep = braking_swing(velocity, alpha, dt, reaction)
-    limit = stopping_speed(geo.barrier + allowance, accel, reaction)
+    barrier = geo.barrier + allowance
+    limit = stopping_speed(barrier, accel, reaction)
     forward = geo.approach[:, 0]                 # cos of the bearing from the control point
     blocks = []
     for sign, cosine in ((1.0, forward), (-1.0, -forward)):
@@ -453,7 +529,9 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
                              math.sin(sweep))
         inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(cosine.size)
         G = np.zeros((inside.size, 4))
-        G[:, 0] = sign * np.minimum(effective[inside], 1.0)
+        cosine_inside = effective[inside]
+        G[:, 0] = sign * np.where(cosine_inside >= 1.0, 1.0, braking_coefficient(
+            np.minimum(cosine_inside, 1.0), barrier[inside], accel, accel, reaction))
         G[:, 2:] = geo.arc[inside]
         blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
     return stack(*blocks)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -148,10 +149,77 @@ def test_braking_rows_cap_a_head_on_approach_to_one_that_stops_in_time(barrier, 
     centres, radii = np.zeros((1, 2)), np.array([0.2])
     point = np.array([[0.2 + 0.03 + barrier, 0.0]])
     geo = families.geometry(point, np.zeros(1), centres, radii, 0.0, 0.03, 0.0)[0]
-    rows = families.braking_rows(geo, accel, dt + lag)
-    allowed = float(rows.h[0] / rows.G[0, 0])   # the row is v * 1 <= h
+    rows = families.braking_rows(geo, accel, 3.0, dt + lag)
+    assert np.allclose(rows.G[:, 0], 1.0) and np.allclose(rows.G[:, 1:], 0.0)   # head-on: the row is v <= h
+    allowed = float(rows.h.min())
     travelled = allowed * (dt + lag) + allowed**2 / (2.0 * accel)
     assert travelled <= barrier + 1e-9
+
+
+def braked_distance(speed: float, accel: float, reaction: float) -> float:
+    """Signed distance a component covers reacting for ``reaction``, then braking at ``accel`` to 0."""
+    return speed * reaction + speed * abs(speed) / (2.0 * accel)
+
+
+@st.composite
+def braking_cases(draw):
+    """A body point off the base origin (a cover disk or the polygon), a point, a command, the limits."""
+    robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
+    points = np.array([[draw(st.floats(-2, 2, **finite)), draw(st.floats(-2, 2, **finite))]])
+    if draw(st.booleans()) and robot.footprint is not None:
+        polygon = np.asarray(robot.footprint, dtype=float)
+        assume(polygon_distance(polygon, points)[0] > 0.01)
+        geo = families.polygon_geometry(points, np.zeros(1), polygon, 0.03, 0.0)[0]
+    else:
+        body = body_for(robot.name, draw(st.integers(1, 4)))
+        assume(body.clearance(points) > 0.01)
+        geo = families.geometry(points, np.zeros(1), body.centres, body.radii, 0.0, 0.03, 0.0)[0]
+    command = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
+    reaction = draw(st.floats(0.02, 0.2))
+    return robot, geo, command, reaction, draw(st.floats(0.0, 0.02))
+
+
+@settings(max_examples=800)
+@given(braking_cases(), st.booleans())
+def test_braking_rows_stop_every_pair_within_its_barrier_with_the_yaw_rate_braking_at_its_own_limit(case, boxed):
+    """Any command the braking rows allow, held for the reaction time and then braked at ``a_max`` and
+    ``alpha_max`` (each component alone), closes every pair by at most its barrier plus the allowance
+    (to first order: ``c_v D_v + c_omega D_omega``). The rows of a head-on approach rate braking at
+    ``a_max`` (the old rows) fail this for oblique and off-centre points."""
+    robot, geo, command, reaction, allowance = case
+    box = (command - np.array([0.1, 0.3]), command + np.array([0.1, 0.3])) if boxed else None
+    rows = families.braking_rows(geo, robot.a_max, robot.alpha_max, reaction, allowance, box=box)
+    z = np.concatenate((command, np.abs(command)))
+    assume(np.all(rows.G @ z <= rows.h))
+    closing = (geo.approach[:, 0] * braked_distance(command[0], robot.a_max, reaction)
+               + geo.approach[:, 1] * braked_distance(command[1], robot.alpha_max, reaction))
+    assert np.all(closing <= np.maximum(geo.barrier + allowance, 0.0) + 1e-9)
+
+
+@settings(max_examples=300)
+@given(braking_cases())
+def test_braking_rows_leave_a_command_that_closes_no_pair_free(case):
+    """The rows never forbid a command under which braking does not close the pair at all."""
+    robot, geo, command, reaction, allowance = case
+    assume(np.all(geo.barrier + allowance > 1e-6))
+    terms = geo.approach * command
+    assume(np.all(terms <= 0.0))
+    rows = families.braking_rows(geo, robot.a_max, robot.alpha_max, reaction, allowance)
+    z = np.concatenate((command, np.abs(command)))
+    assert np.all(rows.G @ z <= rows.h + 1e-12)
+
+
+@settings(max_examples=300)
+@given(st.floats(0.01, 1.0), st.floats(0.0, 1.5), st.floats(0.3, 3.0), st.floats(0.02, 0.2))
+def test_an_oblique_braking_coefficient_stops_within_the_barrier_along_the_half_plane(cosine, barrier, accel,
+                                                                                       reaction):
+    """A point at angle ``phi`` from the heading (``cos phi`` of each metre travelled closes it): the
+    largest speed the coefficient allows closes it by exactly the barrier, not more."""
+    k = families.braking_coefficient(np.array([cosine]), np.array([barrier]), accel, accel, reaction)[0]
+    limit = families.stopping_speed(np.array([barrier]), accel, reaction)[0]
+    assume(k > 0.0 and limit > 0.0)
+    speed = limit / k
+    assert cosine * braked_distance(speed, accel, reaction) == pytest.approx(barrier, rel=1e-6, abs=1e-9)
 
 
 @settings(max_examples=300)
