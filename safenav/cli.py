@@ -5,6 +5,9 @@ Commands:
   run     one episode with a summary, optionally a PNG, a GIF or the PyBullet GUI
   bench   the benchmarks, from a safenav checkout (they are not part of the wheel)
 
+Where safenav drives a robot on its own (demo, run) the filter is wrapped in the deadlock escape
+(safenav.filters.escape.Escape, whose commands pass through the filter); --no-escape turns it off.
+
 Run ``safenav COMMAND --help`` for the options of each command.
 """
 
@@ -37,7 +40,8 @@ BENCHMARKS: Mapping[str, str] = MappingProxyType({
 module of a checkout's ``benchmarks/`` runs under its own name."""
 
 DEMO_FILTERS = ("none", "cbf", "mpc")
-"""What ``safenav demo`` compares in the three tutorials."""
+"""What ``safenav demo`` compares in the three tutorials (each filter with the deadlock escape unless
+``--no-escape``; see :func:`escaped`)."""
 
 DEMO_ESCAPE_CASE = ("goal_rosbot", "go_to_goal", ("cbf", "cbf+escape", "mpc", "mpc+escape"))
 """The demo's fourth panel, where the escape matters: (scenario, policy, filters), a go-to-goal
@@ -53,6 +57,26 @@ class _Parser(argparse.ArgumentParser):
 
 def _say(message: str) -> None:
     print(message, flush=True)
+
+
+def escaped(name: str, escape: bool) -> str:
+    """The filter the CLI drives with: ``name`` wrapped in the deadlock escape when ``escape`` is set.
+
+    Wherever safenav drives a robot on its own the escape is on (``--no-escape`` turns it off):
+    its commands pass through the same filter, so only progress depends on it. ``"none"`` has no
+    filter to wrap, and a name that already carries the escape is kept.
+
+    Raises:
+        InvalidConfig: ``name`` carries the escape and ``escape`` is off (a contradiction).
+    """
+    from safenav.filters import ESCAPE_SUFFIX, FILTERS
+
+    if name.endswith(ESCAPE_SUFFIX):
+        if not escape:
+            raise InvalidConfig(f"--filter {name} asks for the escape and --no-escape turns it off; expected "
+                                f"--filter {name.removesuffix(ESCAPE_SUFFIX)} --no-escape, or no --no-escape")
+        return name
+    return f"{name}{ESCAPE_SUFFIX}" if escape and FILTERS[name] is not None else name
 
 
 def _filter_names(names: Sequence[str]) -> str:
@@ -73,11 +97,12 @@ def _demo(args: argparse.Namespace) -> int:
     escape_name, escape_policy, escape_filters = DEMO_ESCAPE_CASE
     cases = [(tutorial.name, tutorial.published_policy) for tutorial in TUTORIALS.values()]
     seeds = list(range(args.seed, args.seed + args.seeds))
-    cells = [Cell(name, policy, filter_name) for name, policy in cases for filter_name in DEMO_FILTERS]
+    tutorial_filters = tuple(escaped(name, not args.no_escape) for name in DEMO_FILTERS)
+    cells = [Cell(name, policy, filter_name) for name, policy in cases for filter_name in tutorial_filters]
     cells += [Cell(escape_name, escape_policy, filter_name) for filter_name in escape_filters]
     cases.append((escape_name, escape_policy))
     specs = episode_specs(cells, seeds, args.duration, record_seeds=[args.seed])
-    _say(f"safenav demo: the three tutorial robots, {_filter_names(DEMO_FILTERS)}; and the deadlock escape in "
+    _say(f"safenav demo: the three tutorial robots, {_filter_names(tutorial_filters)}; and the deadlock escape in "
          f"{escape_name}, {_filter_names(escape_filters)}; {len(specs)} episodes "
          f"(seeds {seeds[0]}..{seeds[-1]}) on {args.workers or os.cpu_count()} processes")
     start = time.perf_counter()
@@ -92,7 +117,7 @@ def _demo(args: argparse.Namespace) -> int:
          "distance travelled (towards the goal in goal tasks); stuck: time the nominal wanted to move and the "
          "robot did not; escapes: deadlock escapes after which the nominal made progress again / started.")
     totals = []
-    for name in dict.fromkeys((*DEMO_FILTERS, *escape_filters)):
+    for name in dict.fromkeys((*tutorial_filters, *escape_filters)):
         group = [r for r in records if r["filter"] == name]
         totals.append(f"{_filter_names([name])} {sum(r['collisions'] for r in group)} of "
                       f"{sum(r['episodes'] for r in group)}")
@@ -100,7 +125,8 @@ def _demo(args: argparse.Namespace) -> int:
     panels = [[o for o in outcomes if o.spec.seed == args.seed and (o.spec.scenario, o.spec.policy) == case]
               for case in cases]
     figure = overlay_figure(panels, title=f"safenav demo: the same start (seed {args.seed}); the tutorials "
-                                          f"{_filter_names(DEMO_FILTERS)}; {escape_name} with and without the escape")
+                                          f"{_filter_names(tutorial_filters)}; {escape_name} with and without the "
+                                          f"escape")
     figure.savefig(out)
     _say(f"wrote {out.resolve()} (trajectories of seed {args.seed}, one panel per tutorial and one for the escape) "
          f"in {time.perf_counter() - start:.0f} s")
@@ -122,14 +148,15 @@ def _run(args: argparse.Namespace) -> int:
     name = scenario_name(args.world, args.robot)
     task = scenario(name)
     policy = args.policy or task.policies[0]
-    spec = EpisodeSpec(name, policy, args.filter, args.seed, args.duration, robot=args.robot,
+    filter_name = escaped(args.filter, not args.no_escape)
+    spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot,
                        record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
     _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
-         f"policy {policy}, filter {args.filter}, up to {duration:g} s")
+         f"policy {policy}, filter {filter_name}, up to {duration:g} s")
     outcome = run_spec(spec)
     _print_summary(outcome)
-    title = f"{name}, seed {args.seed}\n{policy} + filter {args.filter}"
+    title = f"{name}, seed {args.seed}\n{policy} + filter {filter_name}"
     if plot is not None or gif is not None:
         _draw(outcome, plot, gif, title)
     return 0
@@ -155,6 +182,8 @@ def _draw(outcome: EpisodeOutcome, plot: Path | None, gif: Path | None, title: s
 
 
 def _print_summary(outcome: EpisodeOutcome) -> None:
+    from safenav.filters import ESCAPE_SUFFIX
+
     metrics = outcome.metrics
     lines = [("simulated", f"{metrics.time:.2f} s in {metrics.steps} control periods "
                            f"({outcome.wall_time:.1f} s of wall time)")]
@@ -168,6 +197,10 @@ def _print_summary(outcome: EpisodeOutcome) -> None:
                                   "(||u - u_nom||, m/s and rad/s)"))
     fraction = metrics.stuck_time / metrics.time if metrics.time > 0 else 0.0
     lines.append(("stuck time", f"{metrics.stuck_time:.1f} s ({100 * fraction:.0f} %)"))
+    lines.append(("deadlocked", f"{metrics.deadlock_time:.1f} s (longest {metrics.longest_deadlock:.1f} s)"))
+    if outcome.spec.filter.endswith(ESCAPE_SUFFIX):
+        lines.append(("escapes", f"{metrics.escapes_started} started, {metrics.escapes_succeeded} handed back with "
+                                 f"progress, {metrics.escape_time:.1f} s escaping"))
     lines.append(("filter statuses", ", ".join(f"{k} {v}" for k, v in sorted(metrics.statuses.items()))))
     lines.append(("fallbacks", str(metrics.fallbacks)))
     if metrics.filter_times.size:
@@ -269,9 +302,10 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="the three tutorials: naive vs CBF vs MPC, a table and a PNG",
         description="The three tutorial scenarios -- stop_at_wall with the published (buggy) controller, "
                     "obstacle_avoidance and wall_follower -- each run naive, CBF-filtered and MPC-filtered "
-                    "on the same seeds, and a go-to-goal through clutter (goal_rosbot) with each filter plain "
-                    "and with the deadlock escape. Prints a table of collisions, clearance, progress, goals and "
-                    "escapes, and writes one PNG with the trajectories of the first seed side by side.")
+                    "on the same seeds, with the deadlock escape around each filter unless --no-escape, and a "
+                    "go-to-goal through clutter (goal_rosbot) with each filter plain and with the escape. Prints "
+                    "a table of collisions, clearance, progress, goals and escapes, and writes one PNG with the "
+                    "trajectories of the first seed side by side.")
     demo.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                       help="first seed; its trajectories are drawn (default: 0)")
     demo.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=5,
@@ -282,6 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="processes running episodes (default: one per core)")
     demo.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                       help="episode length [s] (default: each scenario's own: 12, 40 and 60 s)")
+    demo.add_argument("--no-escape", action="store_true",
+                      help="run the tutorials' filters without the deadlock escape (default: with it; the "
+                           "go-to-goal panel always shows both)")
     demo.add_argument("--no-progress", action="store_true", help="no progress")
     demo.set_defaults(handler=_demo)
 
@@ -301,7 +338,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--policy", metavar="P", type=name_type("policy", POLICY_NAMES),
                      help=f"nominal policy: {', '.join(POLICY_NAMES)}")
     run.add_argument("--filter", metavar="F", type=name_type("filter", FILTER_NAMES), default="cbf",
-                     help=f"safety filter: {', '.join(FILTER_NAMES)} (default: cbf)")
+                     help=f"safety filter: {', '.join(FILTER_NAMES)} (default: cbf); wrapped in the deadlock "
+                          f"escape unless --no-escape")
+    run.add_argument("--no-escape", action="store_true",
+                     help="drive with the filter alone: no deadlock escape (default: the filter is wrapped in "
+                          "safenav.filters.escape.Escape, whose commands pass through the filter)")
     run.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                      help="seed of the world, the start and the noise (default: 0)")
     run.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,

@@ -58,6 +58,8 @@ def test_every_command_has_help(argv, expected, capsys, monkeypatch):
     (["run", "--seed", "1.5"], "argument --seed: must be an integer >= 0, got 1.5 of type float"),
     (["demo", "--duration", "soon"], "argument --duration: must be a finite number > 0, got 'soon' of type str"),
     (["run", "--speed", "3"], "unrecognized arguments: --speed 3"),
+    (["run", "--filter", "mpc+escape", "--no-escape"],
+     "--filter mpc+escape asks for the escape and --no-escape turns it off; expected --filter mpc --no-escape"),
     (["demo", "--seeds", "0"], "argument --seeds: must be an integer >= 1, got 0"),
     (["bench", "nothing"], "argument NAME: invalid choice: 'nothing'"),
     (["fly"], "argument COMMAND: invalid choice: 'fly'"),
@@ -197,3 +199,65 @@ def test_short_demo_writes_its_figure(tmp_path, capsys):
         image.verify()
     with Image.open(out) as image:
         assert image.width > 3 * image.height   # four panels side by side
+
+
+class _Stopped(Exception):
+    """Raised where an episode would start, once its spec is recorded."""
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    ([], "cbf+escape"),
+    (["--no-escape"], "cbf"),
+    (["--filter", "mpc"], "mpc+escape"),
+    (["--filter", "zones", "--no-escape"], "zones"),
+    (["--filter", "cbf+escape"], "cbf+escape"),
+    (["--filter", "none"], "none"),              # nothing to wrap: the naive robot
+])
+def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, capsys, monkeypatch):
+    specs = []
+
+    def record(spec):
+        specs.append(spec)
+        raise _Stopped   # before the episode: only the spec is under test here
+
+    monkeypatch.setattr(experiments, "run_spec", record)
+    with pytest.raises(_Stopped):
+        main(["run", *argv])
+    assert [spec.filter for spec in specs] == [expected]
+    assert f"filter {expected}, up to" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("argv", "tutorial_filters"), [
+    ([], ["none", "cbf+escape", "mpc+escape"]),
+    (["--no-escape"], ["none", "cbf", "mpc"]),
+])
+def test_demo_drives_the_tutorials_with_the_escape_unless_no_escape(argv, tutorial_filters, tmp_path, monkeypatch):
+    specs = []
+
+    def record(batch, *args, **kwargs):
+        specs.extend(batch)
+        raise _Stopped
+
+    monkeypatch.setattr(experiments, "run_specs", record)
+    with pytest.raises(_Stopped):
+        main(["demo", "--seeds", "1", "--out", str(tmp_path / "demo.png"), "--no-progress", *argv])
+    filters = {}
+    for spec in specs:
+        filters.setdefault(spec.scenario, []).append(spec.filter)
+    for tutorial in ("stop_at_wall", "obstacle_avoidance", "wall_follower"):
+        assert filters[tutorial] == tutorial_filters
+    assert filters["goal_rosbot"] == ["cbf", "cbf+escape", "mpc", "mpc+escape"]   # the comparison panel: both
+
+
+@pytest.mark.sim
+def test_run_reports_the_escape_it_drives_with_and_no_escape_leaves_the_deadlock(capsys):
+    """The door world's first seed: the go-to-goal nominal pushes into the wall beside the door."""
+    assert main(["run", "--world", "door", "--seed", "0", "--duration", "8"]) == 0
+    escaped = capsys.readouterr().out
+    assert "filter cbf+escape, up to 8 s" in escaped
+    started = int(escaped.split("escapes:")[1].split()[0])
+    assert started >= 1, escaped
+    assert main(["run", "--world", "door", "--seed", "0", "--duration", "8", "--no-escape"]) == 0
+    plain = capsys.readouterr().out
+    assert "filter cbf, up to 8 s" in plain and "escapes:" not in plain
+    assert float(plain.split("deadlocked:")[1].split()[0]) >= 2.0, plain

@@ -6,19 +6,38 @@ through an obstacle is stopped, not deflected, when the geometry is symmetric (R
 stall as :attr:`~safenav.filters.FilterResult.deadlock`; :class:`Escape` then replaces the
 nominal by an escape command until the nominal's way is clear again:
 
-1. **Side, once per deadlock.** The side (left or right) of the blocking obstacle with more
-   free space, measured on the scan; when both are free the side the nominal turns to.
-2. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
+1. **Start** when the wrapped filter reports a deadlock, or when it has held back a clear forward
+   request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it let through)
+   for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can swing the
+   heading to and fro in front of a wall without ever reporting a stall).
+2. **Side, once per deadlock.** Towards the opening nearest the way the nominal was heading
+   (the chord of its arc over one second): the nearest (in bearing) place where two
+   neighbouring scan points are farther apart than the body's corridor (``2 clear_half_width``),
+   that is, an edge of the blocking obstacle or a door beside it; without one, the side with
+   more free space, or the side the nominal turns to.
+3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
    with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
    towards the chosen side when something is ahead, or when the filter blocks the following.
-3. **Back out** when forward is blocked and the rear is seen and free.
-4. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance`` over the
-   body's width plus the margins, either in the direction the robot was heading when the
-   deadlock began (tracked by integrating the commands: a bug algorithm's "m-line"), or in the
-   direction of the nominal's own arc over one second when it drives forward; or after
-   ``max_time`` (the next deadlock then tries the other side). "Clear" means no current or
-   remembered point in the corridor, with some lidar looking at least partly along it (the
-   escape decides progress only, never safety: its commands go through the filter).
+4. **Back out** when forward is blocked and the rear is seen and free.
+5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
+   clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
+   sides near it (within ``gap_band`` of its edges: a passage, a door, not open floor), is a
+   gap the body fits through: the escape turns into it, aims through its middle, drives
+   ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
+   looks again after ``gap_retry``).
+6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either
+   along the m-line (the way the robot was heading when the deadlock began, tracked by
+   integrating the commands, as in a bug algorithm), or in the direction of the nominal's own arc over one
+   second when it drives forward; or after ``max_time`` (the next deadlock then tries the other
+   side).
+
+A corridor is **clear** when the body fits along it with the wrapped filter's margin: no current
+or remembered point closer to its centre line than ``R + margin + lookahead`` (the radius of the
+robot's disk, the filter's margin, and the look-ahead of a filter that keeps a control point
+ahead of the body that far from every point, as the CBF does: its straight path needs exactly
+that much room), with some lidar looking at least partly along it. No further tolerance: the
+escape decides progress only, never safety (its commands go through the filter), and a corridor
+wider than the filter needs hides the doors the filter would let the body through.
 
 Every escape command goes through the wrapped filter exactly like a nominal would, so the
 safety guarantee is the wrapped filter's, untouched; only progress depends on the escape.
@@ -47,6 +66,18 @@ __all__ = ["Escape", "EscapeConfig"]
 #: How long the filter may block the escape's own commands before it turns in place instead [s].
 STALLED_ESCAPE = 0.3
 
+#: Angle between two directions the gap search tries [rad].
+GAP_RESOLUTION = math.radians(1.0)
+
+#: How far either side of its heading the way through a gap is re-aimed at each call [rad].
+GAP_TRACKING = math.radians(15.0)
+
+#: A forward request is clear when the nominal's ``v`` exceeds this fraction of ``v_max``.
+FORWARD_REQUEST = 0.25
+
+#: Openings farther than this from the robot do not choose the side [m].
+OPENING_RANGE = 2.0
+
 
 @dataclass(frozen=True)
 class EscapeConfig:
@@ -62,6 +93,11 @@ class EscapeConfig:
         back_time: how long to back out when forward is blocked and the rear is free [s].
         side_memory: a deadlock within this time after an escape ended keeps its side [s]
             (hysteresis: the robot keeps going round the same obstacle).
+        gap_window: how far either side of the m-line a gap is looked for [rad].
+        gap_band: how near a corridor's edges obstacle points must be on both sides for it to be
+            a passage [m].
+        gap_retry: distance to follow on after the filter blocked the way through a gap before
+            looking for a gap again [m].
     """
 
     speed: float = 0.4
@@ -72,6 +108,9 @@ class EscapeConfig:
     max_time: float = 20.0
     back_time: float = 0.6
     side_memory: float = 5.0
+    gap_window: float = 0.6 * math.pi
+    gap_band: float = 0.25
+    gap_retry: float = 0.5
 
     def __post_init__(self) -> None:
         name = "EscapeConfig."
@@ -83,6 +122,9 @@ class EscapeConfig:
         _checks.positive(name + "max_time", self.max_time)
         _checks.number(name + "back_time", self.back_time, low=0.0)
         _checks.number(name + "side_memory", self.side_memory, low=0.0)
+        _checks.number(name + "gap_window", self.gap_window, low=0.0, high=math.pi)
+        _checks.positive(name + "gap_band", self.gap_band)
+        _checks.number(name + "gap_retry", self.gap_retry, low=0.0)
 
 
 class Escape:
@@ -109,6 +151,10 @@ class Escape:
         self._turned = 0.0      # heading change since the deadlock began [rad]
         self._since = math.inf  # time since the last escape ended [s]
         self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
+        self._gap: float | None = None   # heading through the gap being driven, since the deadlock began [rad]
+        self._gap_left = 0.0    # distance still to drive through it [m]
+        self._gap_wait = 0.0    # distance to follow before looking for a gap again [m]
+        self._held = 0.0        # how long the filter has held back a clear forward request [s]
 
     @property
     def robot(self) -> RobotSpec:
@@ -123,6 +169,11 @@ class Escape:
         return self.inner.margin
 
     @property
+    def clear_half_width(self) -> float:
+        """Half-width of a corridor the wrapped filter lets the body drive along [m]: ``R + margin + lookahead``."""
+        return self.robot.radius + self.margin + float(getattr(self.inner, "lookahead", 0.0))
+
+    @property
     def escaping(self) -> bool:
         """Whether the escape has replaced the nominal."""
         return self._side != 0
@@ -135,6 +186,7 @@ class Escape:
         self.inner.reset()
         self._side, self._elapsed, self._backing, self._last_side, self._turned = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled = math.inf, 0.0
+        self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
@@ -147,23 +199,32 @@ class Escape:
         memory = self.inner.memory
         known = points if memory is None or len(memory) == 0 else np.vstack((points, memory.points))
         if self._side and self._should_leave(nominal, known, scans):
-            self._last_side, self._side, self._since = self._side, 0, 0.0
+            self._last_side, self._side, self._since, self._gap = self._side, 0, 0.0, None
         if not self._side:
             result = self.inner.filter(nominal, scans, **kwargs)
-            self._since += result.period if math.isfinite(result.period) else self.dt
-            if result.deadlock is None or not np.all(np.isfinite(nominal)):
+            held = result.period if math.isfinite(result.period) else self.dt
+            self._since += held
+            forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
+            self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
+            stalled = self._held >= float(getattr(self.inner, "deadlock_time", math.inf)) - 1e-9
+            if (result.deadlock is None and not stalled) or not np.all(np.isfinite(nominal)):
                 return result
-            self._start(nominal, points, result)
-        command = self._command(points, scans)
+            self._start(nominal, scans, points)
+        command = self._command(points, known, scans)
         result = self.inner.filter(command, scans, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._elapsed += held
         self._turned = float(wrap_angle(self._turned + result.u[1] * held))
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
+        self._travel(abs(float(result.u[0])) * held)
         side = "left" if self._side > 0 else "right"
-        doing = "backing out" if self._backing > 0.0 else \
-            f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
+        if self._gap is not None:
+            doing = f"driving through a gap {math.degrees(wrap_angle(self._gap)):+.0f} deg off the way it was going"
+        elif self._backing > 0.0:
+            doing = "backing out"
+        else:
+            doing = f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
         description = f"{doing}, turning {side}, for {self._elapsed:.1f} s"
         reason = Reason("escape", f"deadlocked: {description}; command ({command[0]:.2f}, {command[1]:.2f}) sent "
                                   f"through the {self.inner.name} filter", None if result.reason is None
@@ -175,11 +236,15 @@ class Escape:
 
     # ------------------------------------------------------------------ the escape
 
-    def _start(self, nominal: np.ndarray, points: np.ndarray, result: FilterResult) -> None:
-        """Choose a side once for this deadlock: the freer one (the other one after a timed-out escape)."""
+    def _start(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], points: np.ndarray) -> None:
+        """Choose a side once for this deadlock (the other one after a timed-out escape)."""
         left = _free(points, 0.25 * math.pi, 0.75 * math.pi)
         right = _free(points, -0.75 * math.pi, -0.25 * math.pi)
-        if abs(left - right) > 0.2:
+        intent = _intent(nominal)
+        opening = self._nearest_opening(scans, intent)
+        if opening is not None:
+            side = 1 if opening > 0.0 else -1
+        elif abs(left - right) > 0.2:
             side = 1 if left > right else -1
         elif nominal[1] != 0.0:
             side = 1 if nominal[1] > 0.0 else -1
@@ -189,12 +254,63 @@ class Escape:
             # Still round the same obstacle: keep the side, unless that escape timed out.
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
         self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
+        self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
 
-    def _command(self, points: np.ndarray, scans: tuple[LaserScan, ...]) -> np.ndarray:
-        """The escape command: follow the obstacle on the chosen side, or back out."""
+    def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float) -> float | None:
+        """Bearing [rad] of the opening nearest the ``intent`` bearing [rad], within ``gap_window`` of it;
+        ``None`` if none.
+
+        An opening lies between two neighbouring points of one scan (in beam order, so across
+        beams with no return) farther apart than ``2 clear_half_width``, the nearer of them within
+        :data:`OPENING_RANGE`; its bearing is that of the pair's midpoint.
+        """
+        best = None
+        for scan in scans:
+            points = scan.points()
+            if points.shape[0] < 2:
+                continue
+            first, second = points[:-1], points[1:]
+            wide = np.hypot(*(second - first).T) > 2.0 * self.clear_half_width
+            near = np.minimum(np.hypot(*first.T), np.hypot(*second.T)) < OPENING_RANGE
+            middle = 0.5 * (first + second)[wide & near]
+            if middle.shape[0] == 0:
+                continue
+            bearings = np.arctan2(middle[:, 1], middle[:, 0])
+            off = np.abs(wrap_angle(bearings - intent))
+            nearest = int(np.argmin(off))
+            if off[nearest] <= self.config.gap_window and (
+                    best is None or off[nearest] < abs(wrap_angle(best - intent))):
+                best = float(bearings[nearest])
+        return best
+
+    def _travel(self, distance: float) -> None:
+        """Count ``distance`` [m] driven against the way through a gap, and against the wait before the next search."""
+        if self._gap is not None:
+            self._gap_left -= distance
+            if self._stalled >= STALLED_ESCAPE:      # the filter does not let the body through: follow on
+                self._gap, self._gap_wait = None, self.config.gap_retry
+        else:
+            self._gap_wait = max(self._gap_wait - distance, 0.0)
+
+    def _command(self, points: np.ndarray, known: np.ndarray, scans: tuple[LaserScan, ...]) -> np.ndarray:
+        """The escape command: through a gap, back out, or follow the obstacle on the chosen side.
+
+        Args:
+            points: the current scans' points (base frame) [m].
+            known: those and the remembered points [m].
+            scans: the current scans.
+        """
         robot, cfg = self.robot, self.config
         side = self._side
         speed, turn = cfg.speed * robot.v_max, cfg.turn * robot.omega_max
+        if self._gap is None and self._backing <= 0.0 and self._gap_wait <= 0.0:
+            self._gap = self._find_gap(known, scans)
+            self._gap_left = cfg.clear_distance
+        if self._gap is not None:
+            self._aim(known, scans)
+            heading_error = float(wrap_angle(self._gap - self._turned))
+            omega = float(np.clip(2.0 * heading_error, -turn, turn))
+            return np.array([speed * max(math.cos(heading_error), 0.0) if abs(heading_error) < 0.5 else 0.0, omega])
         if self._backing > 0.0:
             self._backing -= self.dt
             return np.array([-min(cfg.speed * -robot.v_min, 0.5 * -robot.v_min) if robot.v_min < 0 else 0.0,
@@ -225,31 +341,64 @@ class Escape:
                 return True
         return False
 
-    def _should_leave(self, nominal: np.ndarray, points: np.ndarray, scans: tuple[LaserScan, ...]) -> bool:
-        """Whether the way is clear again (after ``min_time``), or the escape timed out.
+    def _find_gap(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> float | None:
+        """The passage heading nearest the m-line within ``gap_window`` of it (since the deadlock began) [rad]."""
+        offsets = _fan(self.config.gap_window)
+        passage, _ = self._passages(known, scans, offsets)
+        return float(offsets[int(np.argmax(passage))]) if passage.any() else None
 
-        A way is clear when some lidar sees along it now and no point, current or remembered,
-        lies in the corridor (unknown is never clear).
+    def _aim(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> None:
+        """Re-aim through the gap from where the robot is now: the passage heading within
+        :data:`GAP_TRACKING` of the current one that keeps the body farthest from both sides."""
+        headings = self._gap + _fan(GAP_TRACKING)
+        passage, room = self._passages(known, scans, headings)
+        if passage.any():
+            self._gap = float(headings[int(np.argmax(np.where(passage, room, -np.inf)))])
+
+    def _passages(self, known: np.ndarray, scans: tuple[LaserScan, ...],
+                  headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For headings since the deadlock began [rad]: which are passages, and the room on their tighter side [m].
+
+        A passage has points within ``gap_band`` of both edges of its corridor over ``clear_distance``
+        (a door, not open floor), and its corridor is clear for twice that (it leads somewhere: the
+        inside of a U-shaped trap is no way out of it).
         """
-        cfg, robot = self.config, self.robot
+        directions = headings - self._turned
+        cfg, width = self.config, self.clear_half_width
+        left, right = _side_room(known, directions, cfg.clear_distance, width + cfg.gap_band)
+        room = np.minimum(*_side_room(known, directions, 2.0 * cfg.clear_distance, width))
+        passage = self._seen(scans, directions) & (room >= width) & np.isfinite(left) & np.isfinite(right)
+        return passage, np.minimum(left, right)
+
+    def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray) -> np.ndarray:
+        """Which base-frame ``directions`` [rad] some lidar looks along now, at least partly (its edge beams
+        are enough: a corridor's sides are in the memory)."""
+        spread = math.atan2(self.clear_half_width, self.config.clear_distance)
+        return np.array([any(scan.covers(d) or scan.coverage(d - spread, d + spread) > 0.0 for scan in scans)
+                         for d in directions], dtype=bool)
+
+    def _clear(self, known: np.ndarray, scans: tuple[LaserScan, ...], direction: float) -> bool:
+        """Whether the base-frame ``direction`` [rad] is clear for ``clear_distance`` (see the module docstring):
+        seen now, and no point, current or remembered, in its corridor (unknown is never clear)."""
+        directions = np.array([direction])
+        width = self.clear_half_width
+        left, right = _side_room(known, directions, self.config.clear_distance, width)
+        return bool(self._seen(scans, directions)[0] and min(left[0], right[0]) >= width)
+
+    def _should_leave(self, nominal: np.ndarray, known: np.ndarray, scans: tuple[LaserScan, ...]) -> bool:
+        """Whether to hand back: through the gap, or the way clear again (after ``min_time``), or timed out."""
+        cfg = self.config
         if self._elapsed >= cfg.max_time:
             return True
+        if self._gap is not None:
+            return self._gap_left <= 0.0
         if self._elapsed < cfg.min_time:
             return False
-        width = robot.radius + self.margin + 0.05
-        spread = math.atan2(width, cfg.clear_distance)
-
-        def clear(direction: float) -> bool:
-            # A lidar sees along it (its edge beams are enough: the corridor's sides are in the memory).
-            seen = any(scan.covers(direction) for scan in scans) or any(
-                scan.coverage(direction - spread, direction + spread) > 0.0 for scan in scans)
-            return seen and not _corridor(points, direction, width, cfg.clear_distance)
-
-        if clear(-self._turned):
+        if self._clear(known, scans, -self._turned):
             return True      # the way the robot was going when it got stuck is clear again
         if nominal[0] <= 0.0:
             return False
-        return clear(float(np.clip(0.5 * nominal[1], -0.5 * math.pi, 0.5 * math.pi)))   # its arc's chord over 1 s
+        return self._clear(known, scans, _intent(nominal))
 
 
 def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> float:
@@ -263,11 +412,35 @@ def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> 
     return min(float(np.min(np.hypot(points[inside, 0], points[inside, 1]))), horizon)
 
 
+def _intent(nominal: np.ndarray) -> float:
+    """The bearing [rad] the nominal is heading for: the chord of its arc over one second, within +-pi/2."""
+    return float(np.clip(0.5 * nominal[1], -0.5 * math.pi, 0.5 * math.pi))
+
+
+def _fan(window: float) -> np.ndarray:
+    """Offsets ``-window..window`` [rad] every :data:`GAP_RESOLUTION`, nearest zero first."""
+    steps = int(window / GAP_RESOLUTION)
+    offsets = GAP_RESOLUTION * np.arange(-steps, steps + 1)
+    return offsets[np.argsort(np.abs(offsets), kind="stable")]
+
+
+def _side_room(points: np.ndarray, directions: np.ndarray, length: float,
+               reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per direction [rad]: the distance [m] from its centre line to the nearest point on the left and on
+    the right, among the points ahead (up to ``length``) and within ``reach`` of it (``inf``: none)."""
+    points = points[np.hypot(points[:, 0], points[:, 1]) < math.hypot(length, reach)]   # the rest is too far
+    if points.shape[0] == 0:
+        return np.full(len(directions), math.inf), np.full(len(directions), math.inf)
+    c, s = np.cos(directions), np.sin(directions)
+    along = np.outer(points[:, 0], c) + np.outer(points[:, 1], s)
+    across = np.outer(points[:, 1], c) - np.outer(points[:, 0], s)
+    ahead = (along > 0.0) & (along < length) & (np.abs(across) < reach)
+    left = np.where(ahead & (across >= 0.0), across, math.inf).min(axis=0)
+    right = np.where(ahead & (across < 0.0), -across, math.inf).min(axis=0)
+    return left, right
+
+
 def _corridor(points: np.ndarray, direction: float, half_width: float, length: float) -> bool:
     """Whether any point lies in the corridor of ``half_width`` [m] along ``direction`` [rad], up to ``length``."""
-    if points.shape[0] == 0:
-        return False
-    c, s = math.cos(direction), math.sin(direction)
-    along = points[:, 0] * c + points[:, 1] * s
-    across = -points[:, 0] * s + points[:, 1] * c
-    return bool(np.any((along > 0.0) & (along < length) & (np.abs(across) < half_width)))
+    left, right = _side_room(points, np.array([direction]), length, half_width)
+    return bool(min(left[0], right[0]) < half_width)

@@ -56,7 +56,7 @@ from safenav.scan import LaserScan
 __all__ = ["CauseLog", "NodeState", "Outputs", "SafetyCore", "Timed"]
 
 DIAGNOSTICS_PERIOD = 1.0
-"""Seconds between two ``/diagnostics`` messages while the status does not change."""
+"""Seconds between two ``/diagnostics`` messages while the status, its level and the escape do not change."""
 
 LATE_FACTOR = 1.5
 """A tick later than this many control periods after the previous one is reported as late."""
@@ -143,6 +143,7 @@ class NodeState:
             reports a deadlock (:attr:`safenav.filters.FilterResult.deadlock`); ``None`` otherwise.
         escape: what the escape wrapper does instead of the nominal (``escape`` parameter); empty
             when it is not escaping.
+        escape_enabled: the filter is wrapped in the deadlock escape (``escape`` parameter, on by default).
     """
 
     time: float
@@ -167,6 +168,7 @@ class NodeState:
     odom_age: float | None = None
     deadlock: float | None = None
     escape: str = ""
+    escape_enabled: bool = False
 
     @property
     def level(self) -> int:
@@ -243,8 +245,9 @@ class SafetyCore:
         self._last_published: tuple[float, float] | None = None
         self._input_cause: str | None = None
         self._warnings: set[str] = set()
-        self._last_diagnostics: tuple[float, str] | None = None
-        self.state = NodeState(time=0.0, status=IDLE, reason="no cmd_vel_in received yet", enabled=self.enabled)
+        self._last_diagnostics: tuple[float, tuple[str, int, bool]] | None = None
+        self.state = NodeState(time=0.0, status=IDLE, reason="no cmd_vel_in received yet", enabled=self.enabled,
+                               escape_enabled=config.escape)
         self.last_result: FilterResult | None = None
 
     # ------------------------------------------------------------------ inputs
@@ -363,10 +366,10 @@ class SafetyCore:
             self._last_published = state.u
         latency = time.perf_counter() - trigger_scan.perf if published and trigger_scan else None
         state = _replace(state, published=published, period=period, trigger=trigger, latency=latency,
-                         **self._ages(now))
+                         escape_enabled=self.config.escape, **self._ages(now))
         self.state = state
         outputs.state(state)
-        if self._diagnostics_due(now, state.status):
+        if self._diagnostics_due(now, (state.status, state.level, bool(state.escape))):
             outputs.diagnostics(state)
         if self.config.markers and self.last_result is not None:
             result = self.last_result
@@ -483,12 +486,23 @@ class SafetyCore:
         odom_age = None if self._odometry is None else round(now - self._odometry.time, 6)
         return {"source_ages": source_ages, "odom_age": odom_age}
 
-    def _diagnostics_due(self, now: float, status: str) -> bool:
+    def _diagnostics_due(self, now: float, condition: tuple[str, int, bool]) -> bool:
+        """Whether to publish diagnostics: when ``condition`` (status, level, escaping) changes, else once
+        every :data:`DIAGNOSTICS_PERIOD`."""
         last = self._last_diagnostics
-        if last is None or last[1] != status or now - last[0] >= DIAGNOSTICS_PERIOD:
-            self._last_diagnostics = (now, status)
+        if last is None or last[1] != condition or now - last[0] >= DIAGNOSTICS_PERIOD:
+            self._last_diagnostics = (now, condition)
             return True
         return False
+
+    def describe(self) -> str:
+        """One line for the log at start: topics, filter (with the escape or not), robot, period and sources."""
+        config = self.config
+        escape = "with the deadlock escape" if config.escape else "without the deadlock escape (escape: false)"
+        return (f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} {escape} "
+                f"for {config.robot.name} every {config.control_period:g} s; sources: "
+                + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
+                            for s in config.sources))
 
     def footprint(self) -> np.ndarray:
         """The body outline in the base frame [m]: the footprint polygon, or the disk as 32 vertices."""

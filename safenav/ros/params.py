@@ -59,8 +59,9 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("alpha_max", None, "largest angular acceleration [rad/s^2] (default: the preset's)"),
     Parameter("filter", "cbf", "safety filter: cbf, mpc or zones; its settings are <filter>.<field> "
                                "(e.g. cbf.margin, mpc.horizon_time), fields of CBFConfig/MPCConfig/ZonesConfig"),
-    Parameter("escape", False, "wrap the filter in safenav.filters.escape.Escape: a deadlock escape whose "
-                               "commands pass through the filter"),
+    Parameter("escape", True, "wrap the filter in safenav.filters.escape.Escape: a deadlock escape whose "
+                              "commands pass through the filter (false: the filter alone, which may hold the "
+                              "robot in a deadlock)"),
     Parameter("control_period", 0.05, "period of the cmd_vel output and the filter's dt [s]"),
     Parameter("step_on_scan", True, "also filter at once when a scan arrives (the timer then restarts), "
                                     "so a fresh scan never waits for the next tick"),
@@ -168,7 +169,9 @@ class NodeConfig:
         robot: the robot to protect.
         filter: ``"cbf"``, ``"mpc"`` or ``"zones"``.
         filter_settings: keyword settings of the filter (fields of its config class).
-        escape: wrap the filter in the deadlock escape (:class:`safenav.filters.escape.Escape`).
+        escape: wrap the filter in the deadlock escape (:class:`safenav.filters.escape.Escape`), on by
+            default: the node drives the robot on its own, and the escape's commands pass through
+            the same filter, so only progress depends on it.
         control_period: output period and the filter's ``dt`` [s].
         step_on_scan: filter at once when a scan arrives, and restart the timer.
         sources: the obstacle sources (at least one).
@@ -186,7 +189,7 @@ class NodeConfig:
     robot: RobotSpec
     filter: str = "cbf"
     filter_settings: Mapping[str, Any] = field(default_factory=dict)
-    escape: bool = False
+    escape: bool = True
     control_period: float = 0.05
     step_on_scan: bool = True
     sources: tuple[SourceConfig, ...] = ()

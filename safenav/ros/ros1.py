@@ -183,8 +183,7 @@ class SafetyNode:
                                     node_name=rospy.get_name())
         self._service = rospy.Service("~enable", SetBool, self._on_enable)
         self._loop = _DeadlineLoop(config.control_period, self._on_timer)
-        rospy.loginfo(f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} for "
-                      f"{config.robot.name} every {config.control_period:g} s")
+        rospy.loginfo(self.core.describe())
 
     def _locked(self, handler: Callable[[Any, float], None]) -> Callable[[Any], None]:
         def call(msg: Any) -> None:

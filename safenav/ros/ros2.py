@@ -102,10 +102,7 @@ class SafetyNode(Node):
                                     level=lambda level: bytes([level]), node_name=self.get_name())
         self.create_service(SetBool, "~/enable", self._on_enable)
         self._timer = self.create_timer(config.control_period, lambda: self.core.tick(_seconds(self), self.outputs))
-        logger.info(f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} for "
-                    f"{config.robot.name} every {config.control_period:g} s; sources: "
-                    + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
-                                for s in config.sources))
+        logger.info(self.core.describe())
 
     def _on_scan(self, source: str, msg: Any) -> None:
         if self.core.on_scan(source, msg, _seconds(self)):

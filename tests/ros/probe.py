@@ -8,7 +8,8 @@ process holds one of them)::
 It plays a scenario (:data:`SCENARIOS`; default ``node``) against the node ``/safenav_filter``
 (robot ``rosbot``, no odometry) and writes every phase's outputs and states; ``test_node.py``
 asserts on them. The ``cloud`` scenario also watches a second node, ``/cloud_only``, whose
-output is ``cmd_vel_cloud_only``.
+output is ``cmd_vel_cloud_only``; the ``escape`` scenario a node ``/no_escape`` started with
+``escape: false``, whose output is ``cmd_vel_no_escape``.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ RATE = 20.0          # [Hz] of the probe's scans and commands
 NOMINAL = (0.5, 0.0)  # the tutorial's forward command [m/s, rad/s]
 NODE = "/safenav_filter"
 #: Nodes the probe watches: label -> (node name, output topic).
-WATCHED = {"node": (NODE, "cmd_vel"), "cloud_only": ("/cloud_only", "cmd_vel_cloud_only")}
+WATCHED = {"node": (NODE, "cmd_vel"), "cloud_only": ("/cloud_only", "cmd_vel_cloud_only"),
+           "no_escape": ("/no_escape", "cmd_vel_no_escape")}
 
 
 class Probe:
@@ -241,7 +243,23 @@ def cloud_scenario(probe: Probe) -> dict[str, Any]:
     return phases
 
 
-SCENARIOS = {"node": node_scenario, "cloud": cloud_scenario}
+def escape_scenario(probe: Probe) -> dict[str, Any]:
+    """A forward command into a wall at the margin, long enough for a deadlock: ``/safenav_filter`` runs
+    with the default parameters (the escape on), ``/no_escape`` with ``escape: false``."""
+    robot = preset("rosbot")
+    free = fill_scan(probe.scan_message(), robot.scan(), "laser")
+    at_margin = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=0.39))), "laser")
+
+    def both_ok(states: dict[str, list[dict[str, Any]]]) -> bool:
+        return all(_reports(states[label], "ok") for label in ("node", "no_escape"))
+
+    phases: dict[str, Any] = {}
+    phases["discovery"] = probe.drive(30.0, free, until=both_ok)
+    phases["wall"] = probe.drive(3.5, at_margin)
+    return phases
+
+
+SCENARIOS = {"node": node_scenario, "cloud": cloud_scenario, "escape": escape_scenario}
 
 
 def _reports(states: list[dict[str, Any]], status: str) -> bool:

@@ -219,14 +219,32 @@ def _drive_into_a_wall(core, out, seconds: float):
 
 
 def test_a_deadlock_is_reported_and_the_escape_parameter_gets_out_of_it():
-    core, out, _ = make_core()
+    core, out, _ = make_core(escape=False)
     state = _drive_into_a_wall(core, out, 3.0)
     assert state.deadlock is not None and state.deadlock >= 1.0 and state.escape == "" and state.level >= 1
+    assert not state.escape_enabled and not core.state.escape_enabled
     escaping, out, _ = make_core(escape=True)
     _drive_into_a_wall(escaping, out, 3.0)
     escapes = [s for s in out.states if s.escape]
     assert escapes and all(s.u_nom == (0.5, 0.0) and abs(s.u[1]) > 0.1 for s in escapes)   # turning away
     assert "following the obstacle" in escapes[0].escape
+
+
+def test_the_escape_is_on_by_default_and_reported_in_the_state_and_the_diagnostics():
+    """The node drives the robot on its own: the escape wraps the filter unless ``escape: false``."""
+    assert NodeConfig.from_parameters({}).escape and not NodeConfig.from_parameters({"escape": False}).escape
+    core, out, _ = make_core()
+    assert core.filter.name == "cbf+escape" and core.state.escape_enabled
+    assert "with cbf with the deadlock escape for rosbot" in core.describe()
+    assert "without the deadlock escape (escape: false)" in make_core(escape=False)[0].describe()
+    _drive_into_a_wall(core, out, 3.0)
+    assert all(s.escape_enabled for s in out.states)
+    escaping = [s for s in out.states if s.escape]
+    assert escaping and escaping[0].deadlock is None and escaping[0].binding == "escape"
+    assert all(abs(s.u[1]) > 0.1 for s in escaping)                         # it turns away from the wall
+    assert escaping[0] in out.diagnosed                                     # a new status: diagnosed at once
+    values = dict(core.diagnostic_values(escaping[0]))
+    assert values["escape_enabled"] == "True" and "following the obstacle" in values["escape"]
 
 
 

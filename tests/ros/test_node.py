@@ -16,6 +16,10 @@ from tests.ros.clouds import cloud_parameters
 from tests.ros.graph import MIDDLEWARES
 
 CONTROL_PERIOD = 0.05
+#: The probe's scans are static (nothing moves the robot), so over the wall phases a deadlock builds
+#: up and the escape (on by default) would turn in place: the braking tests run the filter alone, and
+#: the escape has its own test below.
+FILTER_ALONE = {"escape": False}
 SCAN_TIMEOUT = 0.5
 SETTLE = 0.3        # [s] after a phase starts before its outputs must show the new behaviour
 DELIVERY = 0.3      # [s] allowance for discovery-free delivery and scheduling on a loaded machine
@@ -34,7 +38,7 @@ def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graph
                                                                           tmp_path: Path) -> None:
     """And a misspelt parameter stops another node at once with one line that names it."""
     graph = graphs(middleware)
-    node = graph.spawn("node", params={"robot": "rosbot", "filter": "cbf", "odom_topic": "",
+    node = graph.spawn("node", params={**FILTER_ALONE, "robot": "rosbot", "filter": "cbf", "odom_topic": "",
                                        "scan.timeout": SCAN_TIMEOUT, "cmd_vel_timeout": 5.0,
                                        "control_period": CONTROL_PERIOD})
     misspelt = graph.spawn("misspelt", params={"robot": "rosbot", "scan_timout": 1.0}, node_name="misspelt")
@@ -100,7 +104,7 @@ def test_point_cloud_sources_brake_for_a_wall_only_the_cloud_sees_and_survive_a_
         graphs, middleware: str, tmp_path: Path) -> None:
     """Two nodes on one ``cloud`` topic: a LaserScan plus a depth-camera cloud, and a 3D-lidar cloud alone."""
     graph = graphs(middleware)
-    common = {"robot": "rosbot", "filter": "cbf", "odom_topic": "", "cmd_vel_timeout": 5.0,
+    common = {**FILTER_ALONE, "robot": "rosbot", "filter": "cbf", "odom_topic": "", "cmd_vel_timeout": 5.0,
               "control_period": CONTROL_PERIOD}
     nodes = {"node": graph.spawn("node", params={**common, "sources": ["scan", "cloud"],
                                                  **cloud_parameters("cloud", full_turn=False)}),
@@ -143,3 +147,35 @@ def test_point_cloud_sources_brake_for_a_wall_only_the_cloud_sees_and_survive_a_
         warned = [line for line in context.splitlines()
                   if line.startswith("[WARN]") and "braking: source 'cloud': malformed message" in line]
         assert len(warned) == 1, context
+
+
+@pytest.mark.parametrize("middleware", MIDDLEWARES)
+def test_the_escape_is_on_by_default_and_the_escape_parameter_turns_it_off(graphs, middleware: str,
+                                                                          tmp_path: Path) -> None:
+    """Two nodes against a wall at the margin: the default one escapes (and says so in ``~/state``), the
+    one with ``escape: false`` holds still and reports the deadlock."""
+    graph = graphs(middleware)
+    common = {"odom_topic": "", "cmd_vel_timeout": 5.0}
+    nodes = {"node": graph.spawn("node", params=common),
+             "no_escape": graph.spawn("no_escape", node_name="no_escape", params={
+                 **common, "escape": False, "cmd_vel_out_topic": "cmd_vel_no_escape"})}
+    out = tmp_path / "probe.json"
+    probe = graph.run("probe", [sys.executable, "tests/ros/probe.py", middleware, str(out), "escape"])
+    assert probe.wait(timeout=120) == 0, graph.log("probe") + graph.log("node") + graph.log("no_escape")
+    phases = json.loads(out.read_text())
+    wall = {"node": phases["wall"], "no_escape": {"begin": phases["wall"]["begin"], **phases["wall"]["no_escape"]}}
+    for label, process in nodes.items():
+        assert process.poll() is None, graph.log(label)
+        assert all(s["escape_enabled"] == (label == "node") for s in wall[label]["states"]), label
+
+    escaping = [s for s in wall["node"]["states"] if s["escape"]]
+    assert escaping, (wall["node"]["states"][-3:], graph.log("node"))
+    assert all(s["binding"] == "escape" and s["u_nom"] == [0.5, 0.0] for s in escaping)
+    assert "following the obstacle" in escaping[0]["escape"] or "backing out" in escaping[0]["escape"]
+    after = [o for o in wall["node"]["outputs"] if o[0] >= escaping[0]["t"]]
+    assert after and any(abs(o[2]) > 0.1 for o in after), after          # it turns away from the wall
+
+    held = wall["no_escape"]["states"]
+    assert held and not any(s["escape"] for s in held), held[-3:]
+    assert held[-1]["deadlock"] is not None and held[-1]["deadlock"] >= 1.0, held[-3:]
+    assert all(abs(o[2]) < 1e-9 for o in wall["no_escape"]["outputs"])  # the filter alone never turns
