@@ -112,6 +112,10 @@ class MPCConfig:
             command within the period). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
+        hold_distance: a solved plan that takes no part of the body more than this farther than
+            braking now would (at any knot) gives way to braking now, when that plan passes
+            every check: held in front of an obstacle the robot stands still instead of taking
+            each millimetre of room and reversing in the next period [m] (0: never).
         deadlock_time: how long the commands may stall while the nominal asks to move before the
             result reports a deadlock [s].
         scan_timeout: scans older than this make the filter brake [s].
@@ -139,6 +143,7 @@ class MPCConfig:
     time_constant: float = 0.0
     memory_range: float | None = None
     memory_capacity: int = 4000
+    hold_distance: float = 0.01
     deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
@@ -175,6 +180,7 @@ class MPCConfig:
         if self.memory_range is not None:
             _checks.positive(name + "memory_range", self.memory_range)
         _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.number(name + "hold_distance", self.hold_distance, low=0.0, high=1.0)
         _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)

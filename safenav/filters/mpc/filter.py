@@ -59,6 +59,7 @@ class _Solved(NamedTuple):
     solve_time: float
     message: str
     abandoned: bool = False
+    held: bool = False
 
 
 class MPCSafetyFilter(SafetyFilter):
@@ -142,6 +143,12 @@ class MPCSafetyFilter(SafetyFilter):
     ``K`` slots and the NLP is solved again (up to ``max_rounds`` solves). An answer that needs
     slack gives way to the previous plan shifted by one period when that plan, checked the
     same way, needs none.
+
+    **Holding a stop.** A solved plan that takes no part of the body more than
+    ``hold_distance`` (1 cm) farther than braking now gives way to braking now, when that plan
+    passes every check: held in front of an obstacle the robot stands still (instead of taking
+    each millimetre of room and reversing in the next period, a command alternating about
+    zero), and it moves again as soon as a plan makes progress. The feasible set is unchanged.
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
     of ``dt``), counted from the start of the optimisation and checked before every QP of
@@ -493,9 +500,37 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
+        outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
-                            solve_time=outcome.solve_time, solver=self.backend.name)
+                            solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held)
+
+    def _hold(self, problem: MPCProblem, solved: _Solved) -> _Solved:
+        """Braking now (standing still, once stopped) instead of a plan that makes no progress.
+
+        Held in front of an obstacle, the plan that tracks the nominal takes whatever room it
+        has in its first period and must reverse in the next, which makes room again (the
+        base reaches a command sooner than the modelled ramp): the command alternates about
+        zero while the obstacle stays. When the solved plan takes no part of the body more
+        than ``hold_distance`` farther than braking now would (at any knot, yaw counted at the
+        body's radius), braking now is taken instead, if it passes every check of the problem
+        without using more of the buffer; it is verified like any answer, so the feasible set
+        is unchanged. A plan that makes progress (the obstacle gone, a turn the nominal asks
+        for) moves the body farther than that and is kept.
+        """
+        reach = float(self.config.hold_distance)
+        if reach <= 0.0 or solved.commands is None or solved.check is None:
+            return solved
+        stop = self._braking(np.clip(np.zeros(2), problem.lower[0], problem.upper[0]), problem.hold)
+        if np.array_equal(stop, solved.commands):
+            return solved
+        check = self.check_plan(problem, stop)
+        apart = solved.check.poses - check.poses
+        progress = float(np.max(np.hypot(apart[:, 0], apart[:, 1]) + self.robot.radius * np.abs(apart[:, 2])))
+        if (progress > reach or check.limits > BOUND_TOLERANCE or check.clearance < -VERIFY_TOLERANCE
+                or check.planned < min(0.0, solved.check.planned) - VERIFY_TOLERANCE):
+            return solved
+        return solved._replace(commands=stop, check=check, held=True)
 
     def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
         """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
@@ -511,7 +546,7 @@ class MPCSafetyFilter(SafetyFilter):
         return solved
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
-                used: np.ndarray, solve_time: float, solver: str) -> FilterResult:
+                used: np.ndarray, solve_time: float, solver: str, held: bool = False) -> FilterResult:
         """The result for a verified plan: status from its slack and the margin, and why it differs from u_nom."""
         status, reason = FilterStatus.OK, None
         slack = max(0.0, -check.clearance)
@@ -530,6 +565,9 @@ class MPCSafetyFilter(SafetyFilter):
             status = FilterStatus.RECOVERING
             reason = Reason("plan", f"inside the margin of the nearest obstacle (barrier {problem.min_barrier:.3f} "
                                     f"m); the plan comes no closer", point)
+        elif held:
+            reason = Reason("plan", f"held stopped: no plan takes the body more than {self.config.hold_distance:.3g} "
+                                    f"m farther than braking now", point)
         elif not np.array_equal(commands[0], problem.u_nom):
             reason = self._why(problem, commands, check, point)
         active = np.flatnonzero(margins[used] <= VERIFY_TOLERANCE + max(0.0, -check.planned))
