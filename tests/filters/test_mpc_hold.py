@@ -85,3 +85,18 @@ def test_the_held_stop_is_a_verified_plan_that_ends_stopped():
     check = filt.check_plan(filt.build_problem((0.5, 0.0), scan, velocity), commands)
     assert check.limits <= 1e-9 and check.clearance >= -1e-6
     assert np.all(commands[-1] == 0.0)
+
+
+def test_turning_on_the_spot_to_find_a_way_round_the_linear_command_does_not_reverse():
+    """A person just off the path: the plan turns on the spot before driving round, and the linear
+    command stays at zero meanwhile instead of alternating about it."""
+    robot = preset("rosbot")
+    filt = mpc(robot)
+    scene = Scene.of(Circle((1.2, 0.2), 0.25))
+    commands, statuses, pose, _, worst = drive(filt, scene, np.array([0.5, 0.0]), 100)
+    arrived = commands[35:]
+    assert np.all(arrived[:, 0] >= 0.0), f"reversing commands: {arrived[:, 0].round(4).tolist()}"
+    on_the_spot = (arrived[:, 0] == 0.0) & (np.abs(arrived[:, 1]) > 0.1)
+    assert np.count_nonzero(on_the_spot) >= 10                            # turns on the spot, then drives off
+    assert abs(pose.y) > 0.3 and worst >= filt.margin - 1e-4              # and it gets round
+    assert all(status in (FilterStatus.OK, FilterStatus.RECOVERING) for status in statuses)

@@ -112,10 +112,12 @@ class MPCConfig:
             command within the period). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
-        hold_distance: a solved plan that takes no part of the body more than this farther than
-            braking now would (at any knot) gives way to braking now, when that plan passes
-            every check: held in front of an obstacle the robot stands still instead of taking
-            each millimetre of room and reversing in the next period [m] (0: never).
+        hold_distance: a solved plan that takes no part of the body more than this away from
+            braking now, at any knot, gives way to braking now when that passes every check;
+            with a positive value, a plan that reverses its linear command in the next period
+            also gives way to a zero linear command when the robot can stop in one period
+            (held in front of an obstacle the robot stands still or turns on the spot instead
+            of a command alternating about zero) [m] (0: neither).
         deadlock_time: how long the commands may stall while the nominal asks to move before the
             result reports a deadlock [s].
         scan_timeout: scans older than this make the filter brake [s].
