@@ -145,13 +145,12 @@ class MPCSafetyFilter(SafetyFilter):
     same way, needs none.
 
     **Holding a stop.** Held in front of an obstacle, the tracking plan would take each
-    millimetre of room in its first period and reverse in the next (a command alternating about
-    zero). A solved plan that takes no part of the body more than ``hold_distance`` (1 cm) away
-    from braking now gives way to braking now; one whose first two linear commands have
-    opposite signs, when the robot can stop in one period, gives way to a zero linear command
-    followed by the plan's (its turn kept): the robot stands still or turns on the spot, and
-    moves again as soon as a plan makes progress. Each replacement is verified like any answer,
-    so the feasible set is unchanged.
+    millimetre of room in its first period and reverse in the next (a linear command
+    alternating about zero for as long as the obstacle stays). A solved plan whose first two
+    linear commands have opposite signs, when the base can stop in one period, gives way to a
+    zero first linear command followed by the plan's (its turn kept), verified like any answer:
+    the robot stands still or turns on the spot, and moves again as soon as a plan makes
+    progress without reversing (``hold_stop``). The feasible set is unchanged.
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
     of ``dt``), counted from the start of the optimisation and checked before every QP of
@@ -509,50 +508,34 @@ class MPCSafetyFilter(SafetyFilter):
                             solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held)
 
     def _hold(self, problem: MPCProblem, solved: _Solved) -> _Solved:
-        """No linear command that the plan itself reverses in the next period, when the robot can stop now.
+        """No linear command that the plan itself reverses in the next period, when the base can stop now.
 
         Held in front of an obstacle, the plan that tracks the nominal takes whatever room it
         has in its first period and reverses in the next, which makes room again (the base
-        reaches a command sooner than the modelled ramp): the command alternates about zero
-        while the obstacle stays, also while the plan turns on the spot to find a way round.
-        Two plans are tried instead, in this order:
-
-        * braking both velocities now, when the solved plan takes no part of the body more
-          than ``hold_distance`` away from it at any knot (yaw counted at the body's radius):
-          the plan makes no progress, the robot stands still;
-        * when the solved plan's first two linear commands have opposite signs and the linear
-          velocity can reach zero in one period: zero first, then the plan's linear commands
-          followed within the acceleration limits, its yaw rates unchanged.
-
-        The first that passes every check of the problem without using more of the buffer is
-        taken; it is verified like any answer, so the feasible set is unchanged. A plan that
-        makes progress without reversing (the obstacle gone, a way round found) is kept.
+        reaches a command sooner than the modelled ramp): the linear command alternates about
+        zero while the obstacle stays, also while the plan turns on the spot to find a way
+        round. When the solved plan's first two linear commands have opposite signs and the
+        linear velocity can reach zero in one period, the plan with a zero first linear
+        command, then the solved plan's linear commands followed within the acceleration
+        limits, and the solved yaw rates, is taken instead if it passes every check of the
+        problem without using more of the buffer: it is verified like any answer, so the
+        feasible set is unchanged. A plan that makes progress without reversing is kept.
         """
-        reach = float(self.config.hold_distance)
         commands, solved_check = solved.commands, solved.check
-        if reach <= 0.0 or commands is None or solved_check is None:
+        if not self.config.hold_stop or commands is None or solved_check is None:
             return solved
-        first = np.clip(np.zeros(2), problem.lower[0], problem.upper[0])
-        candidates = []
-        braking = self._braking(first, problem.hold)
-        if not np.array_equal(braking, commands):
-            candidates.append(braking)
         next_period = min(problem.hold, self.horizon - 1)
-        if first[0] == 0.0 and commands[0, 0] * commands[next_period, 0] < 0.0:
-            turning = commands.copy()
-            turning[:next_period, 0] = 0.0
-            candidates.append(self._repair(turning, problem))
-        for candidate in candidates:
-            check = self.check_plan(problem, candidate)
-            if (check.limits > BOUND_TOLERANCE or check.clearance < -VERIFY_TOLERANCE
-                    or check.planned < min(0.0, solved_check.planned) - VERIFY_TOLERANCE):
-                continue
-            if candidate is braking:
-                apart = solved_check.poses - check.poses
-                if np.max(np.hypot(apart[:, 0], apart[:, 1]) + self.robot.radius * np.abs(apart[:, 2])) > reach:
-                    continue
-            return solved._replace(commands=candidate, check=check, held=True)
-        return solved
+        stoppable = problem.lower[0, 0] <= 0.0 <= problem.upper[0, 0]
+        if not stoppable or commands[0, 0] * commands[next_period, 0] >= 0.0:
+            return solved
+        held = commands.copy()
+        held[:next_period, 0] = 0.0
+        held = self._repair(held, problem)
+        check = self.check_plan(problem, held)
+        if (check.limits > BOUND_TOLERANCE or check.clearance < -VERIFY_TOLERANCE
+                or check.planned < min(0.0, solved_check.planned) - VERIFY_TOLERANCE):
+            return solved
+        return solved._replace(commands=held, check=check, held=True)
 
     def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
         """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
@@ -588,8 +571,7 @@ class MPCSafetyFilter(SafetyFilter):
             reason = Reason("plan", f"inside the margin of the nearest obstacle (barrier {problem.min_barrier:.3f} "
                                     f"m); the plan comes no closer", point)
         elif held:
-            reason = Reason("plan", f"held: braking now, as no plan takes the body more than "
-                                    f"{self.config.hold_distance:.3g} m away from it", point)
+            reason = Reason("plan", "held stopped: the plan would only reverse in the next period", point)
         elif not np.array_equal(commands[0], problem.u_nom):
             reason = self._why(problem, commands, check, point)
         active = np.flatnonzero(margins[used] <= VERIFY_TOLERANCE + max(0.0, -check.planned))
