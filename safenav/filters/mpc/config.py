@@ -112,6 +112,11 @@ class MPCConfig:
             command within the period). Needs ``velocity`` at each call.
         memory_range: remembered points farther than this are forgotten [m] (default: reach + 1 m).
         memory_capacity: largest number of remembered points.
+        hold_stop: a solved plan whose first two linear commands have opposite signs gives way
+            to a zero first linear command (the rest of the plan followed within the
+            acceleration limits, its turn kept) when the base can stop in one period and that
+            plan passes every check: held in front of an obstacle the robot stands still or
+            turns on the spot instead of a linear command alternating about zero.
         deadlock_time: how long the commands may stall while the nominal asks to move before the
             result reports a deadlock [s].
         scan_timeout: scans older than this make the filter brake [s].
@@ -139,6 +144,7 @@ class MPCConfig:
     time_constant: float = 0.0
     memory_range: float | None = None
     memory_capacity: int = 4000
+    hold_stop: bool = True
     deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
@@ -175,6 +181,7 @@ class MPCConfig:
         if self.memory_range is not None:
             _checks.positive(name + "memory_range", self.memory_range)
         _checks.integer(name + "memory_capacity", self.memory_capacity, low=0)
+        _checks.boolean(name + "hold_stop", self.hold_stop)
         _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)

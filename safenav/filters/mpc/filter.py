@@ -59,6 +59,7 @@ class _Solved(NamedTuple):
     solve_time: float
     message: str
     abandoned: bool = False
+    held: bool = False
 
 
 class MPCSafetyFilter(SafetyFilter):
@@ -142,6 +143,14 @@ class MPCSafetyFilter(SafetyFilter):
     ``K`` slots and the NLP is solved again (up to ``max_rounds`` solves). An answer that needs
     slack gives way to the previous plan shifted by one period when that plan, checked the
     same way, needs none.
+
+    **Holding a stop.** Held in front of an obstacle, the tracking plan would take each
+    millimetre of room in its first period and reverse in the next (a linear command
+    alternating about zero for as long as the obstacle stays). A solved plan whose first two
+    linear commands have opposite signs, when the base can stop in one period, gives way to a
+    zero first linear command followed by the plan's (its turn kept), verified like any answer:
+    the robot stands still or turns on the spot, and moves again as soon as a plan makes
+    progress without reversing (``hold_stop``). The feasible set is unchanged.
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
     of ``dt``), counted from the start of the optimisation and checked before every QP of
@@ -493,9 +502,40 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
+        outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
-                            solve_time=outcome.solve_time, solver=self.backend.name)
+                            solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held)
+
+    def _hold(self, problem: MPCProblem, solved: _Solved) -> _Solved:
+        """No linear command that the plan itself reverses in the next period, when the base can stop now.
+
+        Held in front of an obstacle, the plan that tracks the nominal takes whatever room it
+        has in its first period and reverses in the next, which makes room again (the base
+        reaches a command sooner than the modelled ramp): the linear command alternates about
+        zero while the obstacle stays, also while the plan turns on the spot to find a way
+        round. When the solved plan's first two linear commands have opposite signs and the
+        linear velocity can reach zero in one period, the plan with a zero first linear
+        command, then the solved plan's linear commands followed within the acceleration
+        limits, and the solved yaw rates, is taken instead if it passes every check of the
+        problem without using more of the buffer: it is verified like any answer, so the
+        feasible set is unchanged. A plan that makes progress without reversing is kept.
+        """
+        commands, solved_check = solved.commands, solved.check
+        if not self.config.hold_stop or commands is None or solved_check is None:
+            return solved
+        next_period = min(problem.hold, self.horizon - 1)
+        stoppable = problem.lower[0, 0] <= 0.0 <= problem.upper[0, 0]
+        if not stoppable or commands[0, 0] * commands[next_period, 0] >= 0.0:
+            return solved
+        held = commands.copy()
+        held[:next_period, 0] = 0.0
+        held = self._repair(held, problem)
+        check = self.check_plan(problem, held)
+        if (check.limits > BOUND_TOLERANCE or check.clearance < -VERIFY_TOLERANCE
+                or check.planned < min(0.0, solved_check.planned) - VERIFY_TOLERANCE):
+            return solved
+        return solved._replace(commands=held, check=check, held=True)
 
     def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
         """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
@@ -511,7 +551,7 @@ class MPCSafetyFilter(SafetyFilter):
         return solved
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
-                used: np.ndarray, solve_time: float, solver: str) -> FilterResult:
+                used: np.ndarray, solve_time: float, solver: str, held: bool = False) -> FilterResult:
         """The result for a verified plan: status from its slack and the margin, and why it differs from u_nom."""
         status, reason = FilterStatus.OK, None
         slack = max(0.0, -check.clearance)
@@ -530,6 +570,8 @@ class MPCSafetyFilter(SafetyFilter):
             status = FilterStatus.RECOVERING
             reason = Reason("plan", f"inside the margin of the nearest obstacle (barrier {problem.min_barrier:.3f} "
                                     f"m); the plan comes no closer", point)
+        elif held:
+            reason = Reason("plan", "held stopped: the plan would only reverse in the next period", point)
         elif not np.array_equal(commands[0], problem.u_nom):
             reason = self._why(problem, commands, check, point)
         active = np.flatnonzero(margins[used] <= VERIFY_TOLERANCE + max(0.0, -check.planned))
