@@ -17,6 +17,7 @@ REQUIRED_KEYS = {"scenario", "robot", "policy", "filter", "episodes", "collision
 
 
 @pytest.mark.sim
+@pytest.mark.slow   # 30-50 s; the command also runs in tests/benchmarks/test_forms.py and on Ray
 def test_quick_collision_benchmark(tmp_path, capsys):
     out = tmp_path / "rates.json"
     code = collision_rates.main(["--quick", "--json", str(out), "--csv", str(tmp_path / "rates.csv"),

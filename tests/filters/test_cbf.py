@@ -462,8 +462,8 @@ def test_solver_failure_or_wrong_answer_brakes_and_says_so(answer):
 REAL_COMMANDS = [(1.0, 0.0), (0.3, 1.5), (-0.4, -0.5), (0.0, 3.0)]
 
 
-@pytest.mark.parametrize("name", ["carmen-intel", "carmen-freiburg-079", "carmen-csail", "breezyslam-exp1",
-                                  "breezyslam-exp2", "laser-scan-matcher-bag"])
+@pytest.mark.parametrize("name", ["carmen-intel", pytest.param("carmen-freiburg-079", marks=pytest.mark.slow),
+                                  "carmen-csail", "breezyslam-exp1", "breezyslam-exp2", "laser-scan-matcher-bag"])
 def test_every_real_scan_filters_without_error_nan_or_solver_fallback(lidar_data, name):
     from safenav import LidarSpec, Pose2D
     from safenav.datasets import load_recording, recording_files, resample

@@ -53,6 +53,9 @@ def ros_marks(name: str) -> list[Any]:
 
 
 MIDDLEWARES = [pytest.param(name, marks=ros_marks(name), id=name) for name in ("ros2", "ros1")]
+MIDDLEWARES_ROS1_SLOW = [pytest.param(name, marks=ros_marks(name) + ([pytest.mark.slow] if name == "ros1" else []),
+                                      id=name) for name in ("ros2", "ros1")]
+"""As :data:`MIDDLEWARES`, the ROS 1 case under ``-m slow`` (the longest graphs; ROS 1 runs every other test)."""
 
 
 def _free_port() -> int:

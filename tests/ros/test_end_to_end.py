@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from tests.ros.graph import MIDDLEWARES
+from tests.ros.graph import MIDDLEWARES_ROS1_SLOW
 
 DURATION = 20.0   # [s] simulated, in real time
 
 
-@pytest.mark.parametrize("middleware", MIDDLEWARES)
+@pytest.mark.parametrize("middleware", MIDDLEWARES_ROS1_SLOW)
 def test_buggy_controller_hits_the_wall_alone_and_stops_short_of_it_behind_the_filter(graphs, middleware: str,
                                                                                       tmp_path: Path) -> None:
     filtered, alone = graphs(middleware), graphs(middleware)

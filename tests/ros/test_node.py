@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.ros.clouds import cloud_parameters
-from tests.ros.graph import MIDDLEWARES
+from tests.ros.graph import MIDDLEWARES, MIDDLEWARES_ROS1_SLOW
 
 CONTROL_PERIOD = 0.05
 #: The probe's scans are static (nothing moves the robot), so over the wall phases a deadlock builds
@@ -99,7 +99,7 @@ def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graph
                                                  f"expected one of: "), graph.log("misspelt")
 
 
-@pytest.mark.parametrize("middleware", MIDDLEWARES)
+@pytest.mark.parametrize("middleware", MIDDLEWARES_ROS1_SLOW)
 def test_point_cloud_sources_brake_for_a_wall_only_the_cloud_sees_and_survive_a_malformed_cloud(
         graphs, middleware: str, tmp_path: Path) -> None:
     """Two nodes on one ``cloud`` topic: a LaserScan plus a depth-camera cloud, and a 3D-lidar cloud alone."""
