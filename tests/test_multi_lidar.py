@@ -160,7 +160,7 @@ def test_the_filter_sees_the_rear_lidar_and_lets_the_robot_back_up_to_a_wall(fil
 
 
 def random_walk_cases() -> list:
-    return [pytest.param(filter_name, seed, marks=[pytest.mark.slow] if seed >= 2 else [],
+    return [pytest.param(filter_name, seed, marks=[pytest.mark.slow] if seed >= 1 else [],
                          id=f"{filter_name}-{seed}")
             for filter_name in ("cbf", "mpc") for seed in range(20)]
 
