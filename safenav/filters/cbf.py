@@ -396,6 +396,15 @@ class CBFSafetyFilter(SafetyFilter):
         offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
         return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
 
+    @staticmethod
+    def _top_rates(lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
+        """Largest speed [m/s] and yaw rate [rad/s] magnitudes of the box and the current velocity."""
+        speed = max(abs(lower[0]), abs(upper[0]))
+        turn = max(abs(lower[1]), abs(upper[1]))
+        if velocity is not None:
+            speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
+        return speed, turn
+
     def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
                         distance: float | np.ndarray = 0.0) -> float | np.ndarray:
         """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box.
@@ -403,10 +412,7 @@ class CBFSafetyFilter(SafetyFilter):
         For the polygon body the arc term grows with the obstacle point's ``distance`` from the
         base origin [m] (scalar or per point); for disks it does not.
         """
-        speed = max(abs(lower[0]), abs(upper[0]))
-        turn = max(abs(lower[1]), abs(upper[1]))
-        if velocity is not None:
-            speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
+        speed, turn = self._top_rates(lower, upper, velocity)
         kappa = 0.5 * self.robot.omega_max * period
         bound = (speed + self._arm * turn) * (1.0 + kappa)
         return bound + kappa * turn * distance if self._polygon is not None else bound
@@ -422,8 +428,7 @@ class CBFSafetyFilter(SafetyFilter):
         neither can exceed its share beyond ``(sqrt(D_A) + sqrt(D_W))^2``.
         """
         robot = self.robot
-        speed = max(abs(lower[0]), abs(upper[0]), abs(velocity[0]) if velocity is not None else 0.0)
-        turn = max(abs(lower[1]), abs(upper[1]), abs(velocity[1]) if velocity is not None else 0.0)
+        speed, turn = self._top_rates(lower, upper, velocity)
         kappa = 0.5 * robot.omega_max * period
         arc_lever = self._arm if self._polygon is None else distance
         along = speed * (1.0 + kappa) + kappa * turn * arc_lever
