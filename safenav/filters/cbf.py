@@ -526,6 +526,14 @@ class CBFSafetyFilter(SafetyFilter):
         problem = self._constraints(view, velocity, self.dt, cut=reduce)
         return problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
 
+    def points(self, scan: LaserScan | Any) -> np.ndarray:
+        """The obstacle points ``(N, 2)`` [m] (base frame) the rows of :meth:`rows` index.
+
+        Every valid beam of every scan, then the remembered points (the memory is used but not
+        changed).
+        """
+        return self._observe(self._match(as_scans(scan))).points
+
     def build_qp(self, u_nom: Any, scan: LaserScan | Any, velocity: Any = None, *, reduce: bool = True
                  ) -> qpsolvers.Problem:
         """The QP the filter would solve, for inspection, over ``z = (v, omega, t_v, t_omega)``.

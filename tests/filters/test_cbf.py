@@ -131,6 +131,35 @@ def test_filter_properties_on_random_scans(case):
         assert np.array_equal(u, u_nom) and result.n_constraints == 0
 
 
+@settings(max_examples=300, deadline=None)
+@given(cases())
+def test_with_the_velocity_every_pair_keeps_its_own_rate(case):
+    """With ``velocity=`` no barrier row lets a pair outside the margin lose more than ``gamma`` of
+    its own barrier per period (``a . w <= gamma h / dt``), whichever pair is the nearest.
+
+    Without it the rows ask only ``h(x+) >= (1 - gamma) H``: a far pair could then be approached at
+    ``(h - (1 - gamma) H) / dt`` and, once it became the nearest, need more deceleration than the
+    base has (falsifier case -0.0444). ``h`` here is the pair's barrier without the point's
+    uncertainty, at least the barrier the row is written for (the tilted half-plane's value is at most it).
+    """
+    robot, scan, _, velocity = case
+    if velocity is None:
+        velocity = np.zeros(2)
+    filt = CBFSafetyFilter(robot, DT)
+    rows = filt.rows(scan, velocity, reduce=False)
+    barrier = rows.take(rows.family == 0)
+    # The rows are written for four mean velocities of the period (rows.ramp_corners); the first
+    # block is the one for the command itself (mean = command), with the right side as built.
+    assert len(barrier) % 4 == 0
+    barrier = barrier.take(np.arange(len(barrier)) < len(barrier) // 4)
+    points = filt.points(scan)[barrier.point]
+    control = filt.body.centres + np.array([filt.lookahead, 0.0])
+    gaps = np.hypot(points[:, None, 0] - control[None, :, 0], points[:, None, 1] - control[None, :, 1])
+    highest = np.max(gaps - filt.body.radii[None, :] - filt.lookahead - filt.margin, axis=1)
+    outside = highest > 0.0
+    assert np.all(barrier.h[outside] <= filt.gamma * highest[outside] / DT + 1e-9)
+
+
 @settings(max_examples=1000)
 @given(cases())
 def test_reduction_gives_the_answer_of_the_full_qp(case):
