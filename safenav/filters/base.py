@@ -374,6 +374,15 @@ class SafetyFilter(abc.ABC):
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
 
+    @property
+    def corridor_half_width(self) -> float:
+        """Half-width [m] of the narrowest straight corridor the filter lets the body drive along.
+
+        The body's radius plus the margin; a filter whose rows look further ahead (the CBF's
+        ``lookahead``) adds that. A passage narrower than twice this holds the body back.
+        """
+        return self.robot.radius + self.margin
+
     # ------------------------------------------------------------------ hooks
 
     def _on_reset(self) -> None:  # noqa: B027 - an optional hook: stateless filters need nothing

@@ -526,6 +526,11 @@ class CBFSafetyFilter(SafetyFilter):
         problem = self._constraints(view, velocity, self.dt, cut=reduce)
         return problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
 
+    @property
+    def corridor_half_width(self) -> float:
+        """``R + margin + lookahead`` [m]: the control points ahead of the disks keep the margin too."""
+        return self.robot.radius + self.margin + self.lookahead
+
     def points(self, scan: LaserScan | Any) -> np.ndarray:
         """The obstacle points ``(N, 2)`` [m] (base frame) the rows of :meth:`rows` index.
 

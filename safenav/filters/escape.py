@@ -170,8 +170,8 @@ class Escape:
 
     @property
     def clear_half_width(self) -> float:
-        """Half-width of a corridor the wrapped filter lets the body drive along [m]: ``R + margin + lookahead``."""
-        return self.robot.radius + self.margin + float(getattr(self.inner, "lookahead", 0.0))
+        """Half-width of a corridor the wrapped filter lets the body drive along [m] (its ``corridor_half_width``)."""
+        return self.inner.corridor_half_width
 
     @property
     def escaping(self) -> bool:
@@ -206,7 +206,7 @@ class Escape:
             self._since += held
             forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
             self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
-            stalled = self._held >= float(getattr(self.inner, "deadlock_time", math.inf)) - 1e-9
+            stalled = self._held >= self.inner.deadlock_time - 1e-9
             if (result.deadlock is None and not stalled) or not np.all(np.isfinite(nominal)):
                 return result
             self._start(nominal, scans, points)

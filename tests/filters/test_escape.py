@@ -182,4 +182,5 @@ def test_a_corridor_is_clear_when_the_body_fits_with_the_filters_margin_and_look
     robot = preset("rosbot")
     escape = Escape(make(robot))
     assert escape.clear_half_width == pytest.approx(expected(robot, escape.inner), abs=1e-12)
+    assert escape.clear_half_width == escape.inner.corridor_half_width
     assert escape.clear_half_width < 0.5 * door_width(robot) or escape.inner.lookahead > 0.025
