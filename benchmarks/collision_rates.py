@@ -90,6 +90,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                              f"itself with the escape: {','.join(DEFAULT_FILTERS)})")
     parser.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,
                         help="episode length [s] for every scenario (default: each scenario's own)")
+    parser.add_argument("--odometry", action="store_true",
+                        help="also give the filters the odometry pose (default: the measured velocity only, "
+                             "so remembered points are carried by dead reckoning)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -115,11 +118,14 @@ def _sweep(args: argparse.Namespace) -> int:
         if path:
             writable_file(what, path)
     specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
+    if args.odometry:
+        specs = [dataclasses.replace(spec, odometry=True) for spec in specs]
     if not args.real_time:   # the same seed, the same episode, whatever the machine's load
         specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter)) for spec in specs]
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
-          f"x {seeds} seeds, on {where(args)}")
+          f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
+          f"{' and the odometry pose' if args.odometry else ' only'}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))

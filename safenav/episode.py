@@ -71,6 +71,9 @@ class EpisodeConfig:
         stop_on_collision: end the episode at the first collision.
         give_velocity: pass the measured (odometry) velocity to the filter, so it respects
             the acceleration limits; ``False`` tests a filter that ignores them.
+        give_pose: also pass the simulator's pose as the odometry pose (``pose=``), as the ROS
+            nodes pass ``/odom``'s: remembered points are then carried exactly instead of by the
+            velocity's dead reckoning, whose error bound grows with every change of the velocity.
         goal_tolerance: the goal counts as reached within this distance of the base [m].
         stop_at_goal: end the episode once the goal is reached.
         stuck_speed: below this linear [m/s] and ``stuck_turn`` angular [rad/s] speed the
@@ -84,6 +87,7 @@ class EpisodeConfig:
     sim: SimConfig = field(default_factory=SimConfig)
     stop_on_collision: bool = True
     give_velocity: bool = True
+    give_pose: bool = False
     goal_tolerance: float = 0.3
     stop_at_goal: bool = True
     stuck_speed: float = 0.02
@@ -93,7 +97,7 @@ class EpisodeConfig:
     def __post_init__(self) -> None:
         for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn", "deadlock_time"):
             object.__setattr__(self, name, positive(f"EpisodeConfig.{name}", getattr(self, name)))
-        for name in ("stop_on_collision", "give_velocity", "stop_at_goal"):
+        for name in ("stop_on_collision", "give_velocity", "give_pose", "stop_at_goal"):
             object.__setattr__(self, name, boolean(f"EpisodeConfig.{name}", getattr(self, name)))
         if not isinstance(self.sim, SimConfig):
             raise InvalidConfig(f"EpisodeConfig.sim must be a SimConfig, got {self.sim!r}")
@@ -389,7 +393,7 @@ def run_episode(
             else:
                 sensed = state.scans if len(state.scans) > 1 else scan   # every lidar's scan, matched by frame_id
                 result = safety_filter.filter(u_nom, sensed, velocity=state.velocity if config.give_velocity else None,
-                                              now=state.time)
+                                              pose=state.pose if config.give_pose else None, now=state.time)
                 filter_times.append(result.filter_time)
                 u, status = result.u, result.status.value
             statuses[status] = statuses.get(status, 0) + 1

@@ -76,6 +76,28 @@ def test_the_same_drive_with_the_cbf_filter_stops_short_and_counts_the_blocked_t
 
 
 @pytest.mark.sim
+@pytest.mark.parametrize("give_pose", [False, True])
+def test_with_the_odometry_pose_remembered_points_are_carried_exactly(give_pose):
+    # The m2wr's 180-degree lidar leaves points behind it in the memory; dead reckoning from the
+    # velocity adds half of each period's velocity change to their uncertainty, the pose adds none.
+    robot = preset("m2wr")
+    filt = CBFSafetyFilter(robot, 0.05)
+    seen = []
+
+    def watch(step, state, result):
+        seen.append((len(filt.memory), float(filt.memory.uncertainty.max(initial=0.0))))
+
+    run_episode(tutorial_world("wall_follower"), robot, Constant(0.3, 1.5), filt,
+                config=EpisodeConfig(duration=2.0, give_pose=give_pose), seed=0, callback=watch)
+    remembered = [uncertainty for count, uncertainty in seen if count]
+    assert remembered
+    if give_pose:
+        assert max(remembered) == 0.0
+    else:
+        assert max(remembered) > 1e-3
+
+
+@pytest.mark.sim
 def test_goal_reached_ends_the_episode_with_its_time():
     robot = preset("puzzlebot")
     world = World("open", (Wall((5.0, -3.0), (5.0, 3.0)),), start=Pose2D(0.0, 0.0, 0.0), goal=(2.0, 0.0))

@@ -97,7 +97,8 @@ def run_spec(spec: EpisodeSpec) -> EpisodeOutcome:
     world = task.world(spec.seed)
     policy = task.policy(spec.policy, world, spec.seed)
     sim = SimConfig(gui=spec.gui, **dict(spec.sim_options))
-    config = EpisodeConfig(duration=task.duration if spec.duration is None else spec.duration, sim=sim)
+    config = EpisodeConfig(duration=task.duration if spec.duration is None else spec.duration, sim=sim,
+                           give_pose=spec.odometry)
     safety_filter = make_filter(spec.filter, robot, sim.control_dt, **dict(spec.filter_options))
     start = time.perf_counter()
     result = run_episode(world, robot, policy, safety_filter, config=config, seed=spec.seed,

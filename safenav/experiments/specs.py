@@ -72,6 +72,8 @@ class EpisodeSpec:
         sim_options: extra :class:`~safenav.sim_bullet.SimConfig` fields as ``(name, value)``
             pairs or a mapping (noise, dropout, latency, base model, ...).
         filter_options: extra filter settings as ``(name, value)`` pairs or a mapping (``margin``, ...).
+        odometry: also give the filter the simulator's pose as the odometry pose (as a ROS node
+            passes ``/odom``'s); by default it gets the measured velocity only.
 
     Raises:
         UnknownName: an unknown scenario, policy, filter or robot.
@@ -90,6 +92,7 @@ class EpisodeSpec:
     gui: bool = False
     sim_options: tuple[tuple[str, Any], ...] = ()
     filter_options: tuple[tuple[str, Any], ...] = ()
+    odometry: bool = False
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -98,7 +101,7 @@ class EpisodeSpec:
         put(self, "seed", integer("EpisodeSpec.seed", self.seed, low=0))
         if self.duration is not None:
             put(self, "duration", positive("EpisodeSpec.duration", self.duration))
-        for flag in ("record", "record_scans", "gui"):
+        for flag in ("record", "record_scans", "gui", "odometry"):
             put(self, flag, boolean(f"EpisodeSpec.{flag}", getattr(self, flag)))
         put(self, "sim_options", _options("sim_options", self.sim_options))
         put(self, "filter_options", _options("filter_options", self.filter_options))

@@ -71,6 +71,7 @@ SPEC = {"scenario": "stop_at_wall", "policy": "stop_at_wall", "filter": "cbf", "
     ({"seed": 2.5}, InvalidConfig, r"EpisodeSpec\.seed must be an integer >= 0, got 2\.5"),
     ({"duration": -1.0}, InvalidConfig, r"EpisodeSpec\.duration must be a finite number > 0, got -1\.0"),
     ({"record": 1}, InvalidConfig, r"EpisodeSpec\.record must be True or False, got 1"),
+    ({"odometry": "yes"}, InvalidConfig, r"EpisodeSpec\.odometry must be True or False, got 'yes'"),
     ({"sim_options": {"dropout": 1.5}}, InvalidConfig, r"SimConfig\.dropout must be a finite number >= 0 and < 1"),
     ({"sim_options": {"base": "hover"}}, UnknownName, "unknown base model .* 'hover'; expected one of: instant, lag"),
     ({"sim_options": {"colour": "red"}}, InvalidConfig, "EpisodeSpec.sim_options: .*'colour'"),
