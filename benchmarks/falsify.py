@@ -785,7 +785,7 @@ def _summary(cells: Sequence[dict[str, Any]], results: Sequence[list[Found]]) ->
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser = argparse.ArgumentParser(prog=prog or "falsify", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--episodes", type=int, default=2000, help="episodes in all (spread over the cells)")
+    parser.add_argument("--episodes", type=int, default=2000, help="episodes in all, at least (spread evenly over the cells, rounded up)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robots", nargs="+", default=["rosbot", "puzzlebot", "m2wr"])
     parser.add_argument("--filters", nargs="+", default=["cbf", "mpc"])
@@ -802,6 +802,11 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     return run_cli(parser, argv, _run)
 
 
+def episodes_per_cell(episodes: int, cells: int) -> int:
+    """Episodes each of ``cells`` cells gets so that they add up to at least ``episodes`` (and one each)."""
+    return max(1, -(-episodes // cells))
+
+
 def _run(args: argparse.Namespace) -> int:
     if args.replay:
         outcome, log = run(Episode.from_json(args.replay), record=True)
@@ -812,7 +817,7 @@ def _run(args: argparse.Namespace) -> int:
         print(outcome)
         return 0 if not outcome.violated else 1
     cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
-    per_cell = max(1, args.episodes // len(cells))
+    per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()
     print(f"{per_cell * len(cells)} episodes: {len(cells)} cells x {per_cell}, on {where(args)}", flush=True)

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, Episode, decode, run, search
+from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, Episode, decode, episodes_per_cell, run, search
 from safenav import preset
 from safenav.filters import make_filter
 
@@ -82,3 +82,9 @@ def test_an_interrupted_falsification_resumes_to_the_same_report(tmp_path, capsy
     assert report("--results", str(results), "--resume") == whole
     assert "resumed: 13 jobs taken from" in capsys.readouterr().out
     assert len(results.read_text().splitlines()) == 2 + 24
+
+
+@pytest.mark.parametrize(("episodes", "cells", "each"), [(20000, 180, 112), (24, 2, 12), (25, 2, 13), (3, 8, 1)])
+def test_the_episodes_asked_for_are_spread_over_the_cells_rounded_up(episodes, cells, each):
+    assert episodes_per_cell(episodes, cells) == each
+    assert each * cells >= episodes
