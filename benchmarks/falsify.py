@@ -785,7 +785,8 @@ def _summary(cells: Sequence[dict[str, Any]], results: Sequence[list[Found]]) ->
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser = argparse.ArgumentParser(prog=prog or "falsify", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--episodes", type=int, default=2000, help="episodes in all, at least (spread evenly over the cells, rounded up)")
+    parser.add_argument("--episodes", type=int, default=2000,
+                        help="episodes in all, at least (spread over the cells, rounded up)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robots", nargs="+", default=["rosbot", "puzzlebot", "m2wr"])
     parser.add_argument("--filters", nargs="+", default=["cbf", "mpc"])
