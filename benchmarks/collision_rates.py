@@ -155,6 +155,7 @@ def _sweep(args: argparse.Namespace) -> int:
         "duration": duration,
         "durations": {name: duration or scenario(name).duration for name in scenario_names},
         "control_dt": SimConfig().control_dt,
+        "odometry": args.odometry,
         "episodes": len(specs),
         "workers": args.workers,
         "backend": args.backend,

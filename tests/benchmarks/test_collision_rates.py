@@ -26,6 +26,7 @@ def test_quick_collision_benchmark(tmp_path, capsys):
     report = json.loads(out.read_text())
     cells = report["cells"]
     assert cells and all(set(cell) >= REQUIRED_KEYS for cell in cells)
+    assert report["config"]["odometry"] is False
     assert report["config"]["quick"] is True and report["config"]["episodes"] == sum(c["episodes"] for c in cells)
     naive = [cell for cell in cells if cell["filter"] == "none"]
     cbf = [cell for cell in cells if cell["filter"] == "cbf"]
@@ -62,3 +63,14 @@ def test_benchmark_rejects_unknown_names(capsys):
     error = capsys.readouterr().err.strip()
     assert error.startswith("collision_rates: error: unknown scenario 'moon'; expected one of:")
     assert "\n" not in error
+
+
+@pytest.mark.sim
+def test_odometry_gives_the_filters_the_pose_and_the_report_says_so(tmp_path, capsys):
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--scenarios", "wall_follower", "--filters", "cbf", "--seeds", "1", "--duration",
+                                 "1", "--workers", "1", "--odometry", "--no-progress", "--json", str(out)])
+    assert code == 0
+    assert "the filters get the measured velocity and the odometry pose" in capsys.readouterr().out
+    report = json.loads(out.read_text())
+    assert report["config"]["odometry"] is True and report["cells"][0]["collisions"] == 0
