@@ -521,7 +521,7 @@ class CBFSafetyFilter(SafetyFilter):
         The auxiliary rows ``|v| <= t_v``, ``|omega| <= t_omega`` are not included; the point
         indices refer to :meth:`points`.
         """
-        view = self._observe(self._match(as_scans(scan)))
+        view = self._inspected(scan)
         velocity = None if velocity is None else np.asarray(velocity, dtype=float)
         problem = self._constraints(view, velocity, self.dt, cut=reduce)
         return problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
@@ -529,7 +529,7 @@ class CBFSafetyFilter(SafetyFilter):
     @property
     def corridor_half_width(self) -> float:
         """``R + margin + lookahead`` [m]: the control points ahead of the disks keep the margin too."""
-        return self.robot.radius + self.margin + self.lookahead
+        return super().corridor_half_width + self.lookahead
 
     def points(self, scan: LaserScan | Any) -> np.ndarray:
         """The obstacle points ``(N, 2)`` [m] (base frame) the rows of :meth:`rows` index.
@@ -537,7 +537,11 @@ class CBFSafetyFilter(SafetyFilter):
         Every valid beam of every scan, then the remembered points (the memory is used but not
         changed).
         """
-        return self._observe(self._match(as_scans(scan))).points
+        return self._inspected(scan).points
+
+    def _inspected(self, scan: LaserScan | Any) -> View:
+        """The view of ``scan`` for the inspection methods (the memory is used but not changed)."""
+        return self._observe(self._match(as_scans(scan)))
 
     def build_qp(self, u_nom: Any, scan: LaserScan | Any, velocity: Any = None, *, reduce: bool = True
                  ) -> qpsolvers.Problem:
@@ -549,7 +553,7 @@ class CBFSafetyFilter(SafetyFilter):
         ``reduce=False`` every family is built from every valid beam of every scan, with no cut.
         """
         u_nom = np.asarray(u_nom, dtype=float)
-        view = self._observe(self._match(as_scans(scan)))
+        view = self._inspected(scan)
         velocity = None if velocity is None else np.asarray(velocity, dtype=float)
         problem = self._constraints(view, velocity, self.dt, cut=reduce)
         rows = problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
