@@ -17,7 +17,7 @@ import qpsolvers
 
 from safenav import _checks
 from safenav.filters import rows as families
-from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans, progress
 from safenav.filters.body import BodyModel
 from safenav.filters.defaults import (
     default_gamma,
@@ -50,12 +50,24 @@ SLACK_TIERS = ("lost", "inside", "outside")
 _BARRIER = families.FAMILIES.index("barrier")
 #: Look-ahead distance [m] of the single-disk model (steering authority vs 2 l of conservatism head-on).
 DEFAULT_LOOKAHEAD = 0.1
+#: A result keeping less than this share of the nominal's speed, after the commands have stalled for
+#: :data:`SHORTEN_AFTER` [s], is worth the rows of the shortest look-ahead too (before that the longer
+#: one may still steer round).
+HELD_BACK = 0.1
+SHORTEN_AFTER = 0.5
+#: How much more of the nominal's speed the shortest look-ahead's answer must keep to be taken instead.
+LOOKAHEAD_GAIN = 0.1
+#: Room [m] beyond twice the look-ahead difference the shortest look-ahead's barrier needs before the
+#: longer one is tried again (hysteresis).
+LOOKAHEAD_ROOM = 0.05
 MAX_GENERATION_ROUNDS = 8
 """Rounds of constraint generation before the QP takes every candidate row."""
 #: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
 #: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
 BODIES = ("disk", "polygon", "cover")
+#: How much an answer relaxes, for the choice of the look-ahead (lower is better; others rank last).
+_RANK = {FilterStatus.OK: 0, FilterStatus.LATE: 0, FilterStatus.RECOVERING: 1, FilterStatus.SLACK: 2}
 
 
 @dataclass(frozen=True)
@@ -72,6 +84,12 @@ class CBFConfig:
             ``0.02 m + 2 noise_std + 1 m x angle_increment``.
         lookahead: distance of the control points ahead of the disk centres [m]; default
             0.1 m for the single disk (whose centre turning does not move), 0 for a cover.
+        min_lookahead: the shortest look-ahead the filter switches to when the configured one
+            holds the robot back [m] (a door or corridor narrower than ``2 (R + margin +
+            lookahead)``); default 0. Switching to a shorter look-ahead never lowers a barrier, so it
+            is always safe; the filter switches back once the longer one's answer needs no
+            relaxation (see :class:`CBFSafetyFilter`, "Look-ahead"). ``min_lookahead = lookahead``
+            keeps one look-ahead.
         body: ``"disk"`` (the circumscribed disk), ``"polygon"`` (the exact convex footprint) or
             ``"cover"`` (``n_disks`` disks covering the footprint).
         n_disks: disks of the cover (default 3).
@@ -103,6 +121,7 @@ class CBFConfig:
     far_gamma: float | None = None
     margin: float | None = None
     lookahead: float | None = None
+    min_lookahead: float = 0.0
     body: str = "disk"
     n_disks: int = 3
     solver: str = "daqp"
@@ -129,6 +148,7 @@ class CBFConfig:
             _checks.number(name + "margin", self.margin, low=0.0, high=10.0)
         if self.lookahead is not None:
             _checks.number(name + "lookahead", self.lookahead, low=0.0, high=10.0)
+        _checks.number(name + "min_lookahead", self.min_lookahead, low=0.0, high=10.0)
         _checks.choice("CBF body model", self.body, BODIES)
         _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
         if not isinstance(self.solver, str):
@@ -151,14 +171,17 @@ class CBFConfig:
     def resolve(self, robot: RobotSpec, dt: float) -> CBFConfig:
         """This config with every robot-derived default filled in (see :mod:`safenav.filters.defaults`)."""
         gamma = self.gamma if self.gamma is not None else default_gamma(robot, dt)
+        # The polygon and the cover steer without a look-ahead: their points off the base origin move
+        # sideways when the robot turns.
+        lookahead = self.lookahead if self.lookahead is not None else (
+            DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0)
         return dataclasses.replace(
             self,
             gamma=gamma,
             far_gamma=max(gamma, self.far_gamma if self.far_gamma is not None else 1.0),
             margin=self.margin if self.margin is not None else default_margin(robot),
-            lookahead=self.lookahead if self.lookahead is not None else (
-                DEFAULT_LOOKAHEAD if self.body == "disk" or robot.footprint is None else 0.0),   # the polygon and the
-            # cover steer without one: their points off the base origin move sideways when the robot turns
+            lookahead=lookahead,
+            min_lookahead=min(self.min_lookahead, lookahead),
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
         )
@@ -194,6 +217,17 @@ class CBFSafetyFilter(SafetyFilter):
     point (``e_o`` is a remembered point's odometry uncertainty). A control point off the
     base origin moves with both ``v`` and ``omega``, so the filter can steer as well as brake;
     the look-ahead of the single disk costs up to ``2 l`` of extra distance head-on.
+
+    **Look-ahead.** Two look-aheads, ``lookahead`` and ``min_lookahead`` (default 0): each answer is
+    built with the rows of one of them (the attribute :attr:`lookahead` is the one of the last
+    answer). A shorter look-ahead never lowers a pair's barrier (the control point moves back by
+    the difference, the radius shrinks by it), so switching to it is always safe; the filter does so
+    when the longer one's answer needs relaxation and the shorter one's needs less, or when the
+    commands have stalled for :data:`SHORTEN_AFTER` and the longer one keeps under
+    :data:`HELD_BACK` of the nominal's speed (a door narrower than ``2 (R + lookahead + margin)``);
+    the reason then says "look-ahead 0 m". It switches back only to an answer with status
+    ``OK``/``LATE`` (``H >= 0`` for the longer barrier, no relaxation), tried once the shorter
+    barrier exceeds ``2 (lookahead - min_lookahead) + LOOKAHEAD_ROOM``.
 
     **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
     ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
@@ -237,7 +271,8 @@ class CBFSafetyFilter(SafetyFilter):
     velocity and the command with a mean at most ``lag_fraction`` of the way back (any base
     that reaches each command within the period; a first-order lag up to ``time_constant``),
     and ``H >= 0`` at the start, then with status ``OK``/``LATE`` the new ``H`` is at least
-    ``(1 - gamma) H``: the body keeps ``margin`` from every point seen or remembered.
+    ``(1 - gamma) H`` (``H`` of the look-ahead the answer used): the body keeps ``margin`` from
+    every point seen or remembered.
     Returned commands always respect the velocity limits, the acceleration limits (with
     ``velocity``) and every hard row.
 
@@ -277,25 +312,36 @@ class CBFSafetyFilter(SafetyFilter):
                          deadlock_time=cfg.deadlock_time)
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
-        self.lookahead = float(cfg.lookahead)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
         self._polygon = self.body.outline if self.body.name == "polygon" else None
+        self._lookaheads = {float(cfg.lookahead): self._reach_of(float(cfg.lookahead)),
+                            float(cfg.min_lookahead): self._reach_of(float(cfg.min_lookahead))}
+        self._use_lookahead(float(cfg.lookahead))
+        self._short_barrier = -math.inf     # the smallest barrier of the last answer with the shortest look-ahead
+        self.backend: QPBackend = make_backend(cfg.solver)
+
+    def _reach_of(self, lookahead: float) -> tuple[float, tuple[float, float]]:
+        """The farthest control point from the base origin [m] and the bounds of the cut before any
+        trigonometry (:meth:`_constraints`) for the control points ``lookahead`` ahead."""
         if self._polygon is not None:
             vertices = np.hypot(self._polygon[:, 0], self._polygon[:, 1])
             edge = np.roll(self._polygon, -1, axis=0) - self._polygon
             normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.hypot(edge[:, 0], edge[:, 1])[:, None]
             inradius = float(np.min(np.einsum("ij,ij->i", normal, self._polygon)))   # origin to the nearest edge
-            self._arm = float(vertices.max())          # the farthest body point [m]
+            arm = float(vertices.max())          # the farthest body point [m]
             # Bounds for the cut before any trigonometry: H <= |o_min| - inradius - margin, h(o) >= |o| - R - margin.
-            self._extent = (-inradius - self.margin, self._arm + self.margin)
-        else:
-            control = self.body.centres + np.array([self.lookahead, 0.0])
-            control_distance = np.hypot(control[:, 0], control[:, 1])
-            self._arm = float(np.max(control_distance))   # the farthest control point [m]
-            radius = self.body.radii + self.lookahead + self.margin
-            # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
-            self._extent = (float(np.max(control_distance - radius)), float(np.max(control_distance + radius)))
-        self.backend: QPBackend = make_backend(cfg.solver)
+            return arm, (-inradius - self.margin, arm + self.margin)
+        control = self.body.centres + np.array([lookahead, 0.0])
+        control_distance = np.hypot(control[:, 0], control[:, 1])
+        radius = self.body.radii + lookahead + self.margin
+        # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
+        return float(np.max(control_distance)), (float(np.max(control_distance - radius)),
+                                                 float(np.max(control_distance + radius)))
+
+    def _use_lookahead(self, lookahead: float) -> None:
+        """Build the rows of the following calls with the control points ``lookahead`` ahead [m]."""
+        self.lookahead = lookahead
+        self._arm, self._extent = self._lookaheads[lookahead]
 
     def __repr__(self) -> str:
         return (f"CBFSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, body={self.body.name!r}, "
@@ -528,8 +574,9 @@ class CBFSafetyFilter(SafetyFilter):
 
     @property
     def corridor_half_width(self) -> float:
-        """``R + margin + lookahead`` [m]: the control points ahead of the disks keep the margin too."""
-        return super().corridor_half_width + self.lookahead
+        """``R + margin + min_lookahead`` [m]: the control points ahead of the disks keep the margin too,
+        and in a narrow passage the filter shortens the look-ahead to ``min_lookahead``."""
+        return super().corridor_half_width + float(self.config.min_lookahead)
 
     def points(self, scan: LaserScan | Any) -> np.ndarray:
         """The obstacle points ``(N, 2)`` [m] (base frame) the rows of :meth:`rows` index.
@@ -562,6 +609,63 @@ class CBFSafetyFilter(SafetyFilter):
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        longest, shortest = float(self.config.lookahead), float(self.config.min_lookahead)
+        if shortest >= longest:
+            return self._filter_rows(u_nom, view, velocity, period)
+        if self.lookahead == shortest:
+            # Back to the longer look-ahead once there is room for it (its barrier is at least the shorter
+            # one's minus twice the difference) and its answer needs no relaxation and makes progress.
+            if self._short_barrier >= 2.0 * (longest - shortest) + LOOKAHEAD_ROOM:
+                self._use_lookahead(longest)
+                result = self._filter_rows(u_nom, view, velocity, period)
+                if result.status in (FilterStatus.OK, FilterStatus.LATE) and not self._held_back(result, u_nom):
+                    return result
+                self._use_lookahead(shortest)
+            return self._shortened(self._filter_rows(u_nom, view, velocity, period))
+        result = self._filter_rows(u_nom, view, velocity, period)
+        rank = _RANK.get(result.status, len(_RANK))
+        if rank == 0 and (self._stalled < SHORTEN_AFTER - 1e-9 or not self._held_back(result, u_nom)):
+            return result
+        # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
+        # the radius shrinks by it): its answer is as safe, and taken when it needs less relaxation, or as
+        # little and keeps clearly more of the nominal's speed.
+        self._use_lookahead(shortest)
+        shorter = self._filter_rows(u_nom, view, velocity, period)
+        shorter_rank = _RANK.get(shorter.status, len(_RANK))
+        if shorter_rank < rank or (shorter_rank == rank and self._progress(shorter, u_nom)
+                                   >= self._progress(result, u_nom) + LOOKAHEAD_GAIN):
+            return self._shortened(shorter)
+        self._use_lookahead(longest)
+        return result
+
+    def _on_reset(self) -> None:
+        self._use_lookahead(float(self.config.lookahead))
+
+    def _progress(self, result: FilterResult, u_nom: np.ndarray) -> float:
+        """The share of the nominal's speed ``result`` keeps (at most 1; 1 for a turn on the spot): a
+        shorter look-ahead helps only to translate (turning does not move its control point)."""
+        if result.u is result.u_nom:
+            return 1.0
+        scale = np.array([max(abs(self.robot.v_min), self.robot.v_max), 1.0])
+        return progress(result.u * (1.0, 0.0), u_nom * (1.0, 0.0), scale)
+
+    def _held_back(self, result: FilterResult, u_nom: np.ndarray) -> bool:
+        """Whether ``result`` keeps less than :data:`HELD_BACK` of the nominal's speed."""
+        return self._progress(result, u_nom) < HELD_BACK
+
+    def _shortened(self, result: FilterResult) -> FilterResult:
+        """``result`` (built with the shortest look-ahead) with its reason saying so."""
+        self._short_barrier = result.min_barrier
+        if result.reason is None:
+            return result
+        reason = result.reason
+        note = f"look-ahead {self.lookahead:g} m (the longer one held the robot back)"
+        return dataclasses.replace(result, reason=Reason(reason.family, f"{reason.detail}; {note}", reason.point),
+                                   message="")
+
+    def _filter_rows(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float
+                     ) -> FilterResult:
+        """The answer with the rows of the current look-ahead."""
         problem = self._constraints(view, velocity, period)
         rows = problem.rows
         points = problem.points

@@ -321,10 +321,12 @@ def test_unknown_sector_in_front_blocks_forward_motion():
     assert filt.filter((0.3, 0.2), robot.scan(few)).u[0] == 0.3
 
 
-def test_robot_inside_the_margin_moves_back_out():
+@pytest.mark.parametrize(("distance", "settings"), [(0.17, {}), (0.2, {"min_lookahead": 0.1})],
+                         ids=["inside-with-no-look-ahead", "inside-with-the-look-ahead-kept"])
+def test_robot_inside_the_margin_moves_back_out(distance, settings):
     robot = preset("rosbot")
-    filt = CBFSafetyFilter(robot, DT)
-    scan = synthetic_scan(robot, Scene.of(wall(0.2)))
+    filt = CBFSafetyFilter(robot, DT, **settings)
+    scan = synthetic_scan(robot, Scene.of(wall(distance)))
     result = filt.filter((0.5, 0.0), scan)
     assert result.min_barrier < 0
     assert result.status is FilterStatus.RECOVERING
@@ -372,6 +374,67 @@ def test_lookahead_barrier_steers_around_an_offset_obstacle():
     scan = synthetic_scan(robot, Scene.of(Circle((0.45, 0.12), 0.05)))
     result = filt.filter((1.0, 0.0), scan)
     assert result.u[1] < -1e-3     # turns right, away from the obstacle on the left
+
+
+@settings(max_examples=300, deadline=None)
+@given(cases())
+def test_a_shorter_look_ahead_never_lowers_a_barrier(case):
+    """What makes shortening the look-ahead safe at any call: every pair's barrier, hence ``H``, is at
+    least as large (the control point moves back by the difference, the radius shrinks by it)."""
+    robot, scan, _, _ = case
+    barriers = []
+    for lookahead in (0.1, 0.05, 0.0):
+        filt = CBFSafetyFilter(robot, DT, lookahead=lookahead, min_lookahead=lookahead)
+        barriers.append(filt.filter((0.0, 0.0), scan).min_barrier)
+    assert barriers[0] <= barriers[1] + 1e-12 and barriers[1] <= barriers[2] + 1e-12
+
+
+def corridor(robot, width: float) -> Scene:
+    """Two walls along the heading from 0.3 m ahead to 1.5 m, ``width`` apart, centred on the robot."""
+    return Scene.of(Segment((0.3, 0.5 * width), (1.5, 0.5 * width)), Segment((0.3, -0.5 * width), (1.5, -0.5 * width)))
+
+
+def test_held_back_at_a_narrow_passage_the_filter_shortens_its_look_ahead_and_gets_through():
+    """A corridor 2 (R + margin) + 4 cm wide: the 0.1 m look-ahead's control disk does not fit. The filter
+    stalls for ``SHORTEN_AFTER``, then drives through with the rows of the shortest look-ahead, each answer
+    keeping every row of the look-ahead it used and saying so; out of the corridor it takes the longer one back."""
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    scene = corridor(robot, 2.0 * (robot.radius + filt.margin) + 0.04)
+    pose, velocity = Pose2D(), np.zeros(2)
+    used, worst = [], math.inf
+    for _ in range(300):
+        scan = synthetic_scan(robot, scene, pose)
+        result = filt.filter((0.3, 0.0), scan, velocity=velocity)
+        lookahead = filt.lookahead
+        checker = CBFSafetyFilter(robot, DT, lookahead=lookahead, min_lookahead=lookahead)
+        assert result.status is FilterStatus.OK
+        assert np.all(full_residual(checker, result.u_nom, scan, velocity, result.u) <= 1e-6)
+        assert (lookahead == 0.0) == ("look-ahead 0 m" in result.message) or not result.modified
+        used.append(lookahead)
+        worst = min(worst, result.clearance)
+        velocity = result.u.copy()
+        for _ in range(10):
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT / 10)
+    assert worst >= filt.margin - 1e-9
+    assert pose.x > 2.0                     # through the corridor and out
+    assert used[0] == 0.1 and 0.0 in used and used[-1] == 0.1
+    first_short = used.index(0.0)
+    assert first_short * DT >= 0.5 - 1e-9   # it stalled for SHORTEN_AFTER first
+
+
+def test_one_look_ahead_stays_stalled_at_the_narrow_passage_and_reset_restores_the_configured_one():
+    robot = preset("rosbot")
+    fixed = CBFSafetyFilter(robot, DT, min_lookahead=0.1)
+    adaptive = CBFSafetyFilter(robot, DT)
+    scan = synthetic_scan(robot, corridor(robot, 2.0 * (robot.radius + fixed.margin) + 0.04), Pose2D(0.2, 0.0, 0.0))
+    for _ in range(30):
+        held = fixed.filter((0.3, 0.0), scan, velocity=np.zeros(2))
+        moved = adaptive.filter((0.3, 0.0), scan, velocity=np.zeros(2))
+    assert held.u[0] < 0.03 and held.deadlock is not None
+    assert moved.u[0] > 0.05 and adaptive.lookahead == 0.0 and adaptive.corridor_half_width < fixed.corridor_half_width
+    adaptive.reset()
+    assert adaptive.lookahead == 0.1
 
 
 # ------------------------------------------------------------------ solvers
