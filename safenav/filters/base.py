@@ -373,13 +373,18 @@ class SafetyFilter(abc.ABC):
         self._last_command = np.zeros(2)
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
+        #: Set by a caller while the robot drives through a passage the body fits with
+        #: :attr:`corridor_half_width` (the escape, through a gap): a filter that trades room for
+        #: steering (the CBF's look-ahead) then uses its narrow settings. It never weakens a guarantee.
+        self.passage = False
 
     @property
     def corridor_half_width(self) -> float:
         """Half-width [m] of the narrowest straight corridor the filter lets the body drive along.
 
         The body's radius plus the margin; a filter whose rows look further ahead (the CBF's
-        ``lookahead``) adds that. A passage narrower than twice this holds the body back.
+        ``min_lookahead``, with :attr:`passage` set) adds that. A passage narrower than twice this
+        holds the body back.
         """
         return self.robot.radius + self.margin
 
@@ -419,6 +424,7 @@ class SafetyFilter(abc.ABC):
         self._called = False
         self._stalled = 0.0
         self._progressing = 0.0
+        self.passage = False
         self._on_reset()
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:

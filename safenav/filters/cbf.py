@@ -17,7 +17,7 @@ import qpsolvers
 
 from safenav import _checks
 from safenav.filters import rows as families
-from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans, progress
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.defaults import (
     default_gamma,
@@ -50,13 +50,6 @@ SLACK_TIERS = ("lost", "inside", "outside")
 _BARRIER = families.FAMILIES.index("barrier")
 #: Look-ahead distance [m] of the single-disk model (steering authority vs 2 l of conservatism head-on).
 DEFAULT_LOOKAHEAD = 0.1
-#: A result keeping less than this share of the nominal's speed, after the commands have stalled for
-#: :data:`SHORTEN_AFTER` [s], is worth the rows of the shortest look-ahead too (before that the longer
-#: one may still steer round).
-HELD_BACK = 0.1
-SHORTEN_AFTER = 0.5
-#: How much more of the nominal's speed the shortest look-ahead's answer must keep to be taken instead.
-LOOKAHEAD_GAIN = 0.1
 #: Room [m] beyond twice the look-ahead difference the shortest look-ahead's barrier needs before the
 #: longer one is tried again (hysteresis).
 LOOKAHEAD_ROOM = 0.05
@@ -66,8 +59,6 @@ MAX_GENERATION_ROUNDS = 8
 #: ask for fewer (:attr:`~safenav.filters.qp.QPBackend.direct_rows`).
 DIRECT_ROWS = 512
 BODIES = ("disk", "polygon", "cover")
-#: How much an answer relaxes, for the choice of the look-ahead (lower is better; others rank last).
-_RANK = {FilterStatus.OK: 0, FilterStatus.LATE: 0, FilterStatus.RECOVERING: 1, FilterStatus.SLACK: 2}
 
 
 @dataclass(frozen=True)
@@ -84,12 +75,11 @@ class CBFConfig:
             ``0.02 m + 2 noise_std + 1 m x angle_increment``.
         lookahead: distance of the control points ahead of the disk centres [m]; default
             0.1 m for the single disk (whose centre turning does not move), 0 for a cover.
-        min_lookahead: the shortest look-ahead the filter switches to when the configured one
-            holds the robot back [m] (a door or corridor narrower than ``2 (R + margin +
-            lookahead)``); default 0. Switching to a shorter look-ahead never lowers a barrier, so it
-            is always safe; the filter switches back once the longer one's answer needs no
-            relaxation (see :class:`CBFSafetyFilter`, "Look-ahead"). ``min_lookahead = lookahead``
-            keeps one look-ahead.
+        min_lookahead: the look-ahead of a narrow passage [m] (while ``passage`` is set: a door or
+            corridor narrower than ``2 (R + margin + lookahead)``); default 0. Switching to a
+            shorter look-ahead never lowers a barrier, so it is always safe; the filter switches
+            back once the longer one's answer needs no relaxation (see :class:`CBFSafetyFilter`,
+            "Look-ahead"). ``min_lookahead = lookahead`` keeps one look-ahead.
         body: ``"disk"`` (the circumscribed disk), ``"polygon"`` (the exact convex footprint) or
             ``"cover"`` (``n_disks`` disks covering the footprint).
         n_disks: disks of the cover (default 3).
@@ -221,13 +211,12 @@ class CBFSafetyFilter(SafetyFilter):
     **Look-ahead.** Two look-aheads, ``lookahead`` and ``min_lookahead`` (default 0): each answer is
     built with the rows of one of them (the attribute :attr:`lookahead` is the one of the last
     answer). A shorter look-ahead never lowers a pair's barrier (the control point moves back by
-    the difference, the radius shrinks by it), so switching to it is always safe; the filter does so
-    when the longer one's answer needs relaxation and the shorter one's needs less, or when the
-    commands have stalled for :data:`SHORTEN_AFTER` and the longer one keeps under
-    :data:`HELD_BACK` of the nominal's speed (a door narrower than ``2 (R + lookahead + margin)``);
-    the reason then says "look-ahead 0 m". It switches back only to an answer with status
-    ``OK``/``LATE`` (``H >= 0`` for the longer barrier, no relaxation), tried once the shorter
-    barrier exceeds ``2 (lookahead - min_lookahead) + LOOKAHEAD_ROOM``.
+    the difference, the radius shrinks by it), so switching to it is safe at any call: the filter
+    does so while :attr:`~safenav.filters.base.SafetyFilter.passage` is set (the escape sets it
+    while it drives through a gap the body fits, a door narrower than ``2 (R + lookahead +
+    margin)``), and the reason then ends "look-ahead 0 m (a narrow passage)". It switches back only
+    to an answer with status ``OK``/``LATE`` (``H >= 0`` for the longer barrier, no relaxation),
+    tried once the shorter barrier exceeds ``2 (lookahead - min_lookahead) + LOOKAHEAD_ROOM``.
 
     **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
     ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
@@ -575,7 +564,7 @@ class CBFSafetyFilter(SafetyFilter):
     @property
     def corridor_half_width(self) -> float:
         """``R + margin + min_lookahead`` [m]: the control points ahead of the disks keep the margin too,
-        and in a narrow passage the filter shortens the look-ahead to ``min_lookahead``."""
+        and in a narrow passage (:attr:`passage`) the look-ahead is ``min_lookahead``."""
         return super().corridor_half_width + float(self.config.min_lookahead)
 
     def points(self, scan: LaserScan | Any) -> np.ndarray:
@@ -612,46 +601,24 @@ class CBFSafetyFilter(SafetyFilter):
         longest, shortest = float(self.config.lookahead), float(self.config.min_lookahead)
         if shortest >= longest:
             return self._filter_rows(u_nom, view, velocity, period)
-        if self.lookahead == shortest:
+        if self.passage:
+            # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
+            # the radius shrinks by it): switching to it is safe at any call.
+            self._use_lookahead(shortest)
+        elif self.lookahead == shortest and self._short_barrier >= 2.0 * (longest - shortest) + LOOKAHEAD_ROOM:
             # Back to the longer look-ahead once there is room for it (its barrier is at least the shorter
-            # one's minus twice the difference) and its answer needs no relaxation and makes progress.
-            if self._short_barrier >= 2.0 * (longest - shortest) + LOOKAHEAD_ROOM:
-                self._use_lookahead(longest)
-                result = self._filter_rows(u_nom, view, velocity, period)
-                if result.status in (FilterStatus.OK, FilterStatus.LATE) and not self._held_back(result, u_nom):
-                    return result
-                self._use_lookahead(shortest)
+            # one's minus twice the difference) and its answer needs no relaxation.
+            self._use_lookahead(longest)
+            result = self._filter_rows(u_nom, view, velocity, period)
+            if result.status in (FilterStatus.OK, FilterStatus.LATE):
+                return result
+            self._use_lookahead(shortest)
+        if self.lookahead == shortest:
             return self._shortened(self._filter_rows(u_nom, view, velocity, period))
-        result = self._filter_rows(u_nom, view, velocity, period)
-        rank = _RANK.get(result.status, len(_RANK))
-        if rank == 0 and (self._stalled < SHORTEN_AFTER - 1e-9 or not self._held_back(result, u_nom)):
-            return result
-        # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
-        # the radius shrinks by it): its answer is as safe, and taken when it needs less relaxation, or as
-        # little and keeps clearly more of the nominal's speed.
-        self._use_lookahead(shortest)
-        shorter = self._filter_rows(u_nom, view, velocity, period)
-        shorter_rank = _RANK.get(shorter.status, len(_RANK))
-        if shorter_rank < rank or (shorter_rank == rank and self._progress(shorter, u_nom)
-                                   >= self._progress(result, u_nom) + LOOKAHEAD_GAIN):
-            return self._shortened(shorter)
-        self._use_lookahead(longest)
-        return result
+        return self._filter_rows(u_nom, view, velocity, period)
 
     def _on_reset(self) -> None:
         self._use_lookahead(float(self.config.lookahead))
-
-    def _progress(self, result: FilterResult, u_nom: np.ndarray) -> float:
-        """The share of the nominal's speed ``result`` keeps (at most 1; 1 for a turn on the spot): a
-        shorter look-ahead helps only to translate (turning does not move its control point)."""
-        if result.u is result.u_nom:
-            return 1.0
-        scale = np.array([max(abs(self.robot.v_min), self.robot.v_max), 1.0])
-        return progress(result.u * (1.0, 0.0), u_nom * (1.0, 0.0), scale)
-
-    def _held_back(self, result: FilterResult, u_nom: np.ndarray) -> bool:
-        """Whether ``result`` keeps less than :data:`HELD_BACK` of the nominal's speed."""
-        return self._progress(result, u_nom) < HELD_BACK
 
     def _shortened(self, result: FilterResult) -> FilterResult:
         """``result`` (built with the shortest look-ahead) with its reason saying so."""
@@ -659,7 +626,7 @@ class CBFSafetyFilter(SafetyFilter):
         if result.reason is None:
             return result
         reason = result.reason
-        note = f"look-ahead {self.lookahead:g} m (the longer one held the robot back)"
+        note = f"look-ahead {self.lookahead:g} m (a narrow passage)"
         return dataclasses.replace(result, reason=Reason(reason.family, f"{reason.detail}; {note}", reason.point),
                                    message="")
 

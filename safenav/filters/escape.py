@@ -24,7 +24,9 @@ nominal by an escape command until the nominal's way is clear again:
    sides near it (within ``gap_band`` of its edges: a passage, a door, not open floor), is a
    gap the body fits through: the escape turns into it, aims through its middle, drives
    ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
-   looks again after ``gap_retry``).
+   looks again after ``gap_retry``). Meanwhile it sets the wrapped filter's ``passage``, so that a
+   filter that trades room for steering uses its narrow settings (the CBF its ``min_lookahead``;
+   never a weaker guarantee).
 6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either
    along the m-line (the way the robot was heading when the deadlock began, tracked by
    integrating the commands, as in a bug algorithm), or in the direction of the nominal's own arc over one
@@ -201,6 +203,7 @@ class Escape:
         if self._side and self._should_leave(nominal, known, scans):
             self._last_side, self._side, self._since, self._gap = self._side, 0, 0.0, None
         if not self._side:
+            self.inner.passage = False
             result = self.inner.filter(nominal, scans, **kwargs)
             held = result.period if math.isfinite(result.period) else self.dt
             self._since += held
@@ -211,6 +214,7 @@ class Escape:
                 return result
             self._start(nominal, scans, points)
         command = self._command(points, known, scans)
+        self.inner.passage = self._gap is not None    # through a gap the body fits with the filter's narrow settings
         result = self.inner.filter(command, scans, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._elapsed += held

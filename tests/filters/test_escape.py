@@ -48,7 +48,7 @@ def test_a_nominal_that_flips_to_a_feasible_turn_now_and_then_does_not_hide_the_
     of progress a second must not reset the deadlock clock (before: it did, and the escape never started)."""
     robot = preset("rosbot")
     safety = CBFSafetyFilter(robot, 0.05, deadlock_time=1.5)
-    scan = synthetic_scan(robot, Scene.of(wall(robot.radius + safety.margin + 0.01)))
+    scan = synthetic_scan(robot, Scene.of(wall(robot.radius + safety.margin + 0.2)))
     velocity = np.zeros(2)
     reported = None
     for step in range(100):
@@ -169,12 +169,14 @@ def test_the_escape_takes_the_cbf_through_the_door_when_its_look_ahead_fits():
 
 @pytest.mark.parametrize(("robot", "side"), [("rosbot", 1), ("puzzlebot", -1), ("m2wr", 1)])
 def test_the_escape_takes_the_default_cbf_through_the_door(robot, side):
-    """The default look-ahead (0.1 m) needs a door 2 (R + 0.1 m + margin) wide, 15 cm more than this one: held
-    back in the door, the filter shortens it to ``min_lookahead`` (0) and says so in its reason."""
+    """The default look-ahead (0.1 m) needs a door 2 (R + 0.1 m + margin) wide, 15 cm more than this one: driving
+    through the gap, the escape sets the filter's ``passage``, which shortens it to ``min_lookahead`` (0) and
+    says so in its reason (from the first period through the gap until there is room for the longer one)."""
     outcome, log = run(door_behind_a_wall(robot, "cbf", side), record=True)
     assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
     assert _through_the_door(log, robot, side) and outcome.goal_distance < 0.3
-    assert any("look-ahead 0 m" in row["message"] for row in log)
+    narrow = [row for row in log if "look-ahead 0 m (a narrow passage)" in row["message"]]
+    assert narrow and "driving through a gap" in narrow[0]["escape"]
 
 
 def test_with_one_look_ahead_the_cbf_does_not_get_through_the_door():

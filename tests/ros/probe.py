@@ -34,12 +34,6 @@ from tests.ros.clouds import cloud_fields, wall_points  # noqa: E402
 
 RATE = 20.0          # [Hz] of the probe's scans and commands
 NOMINAL = (0.5, 0.0)  # the tutorial's forward command [m/s, rad/s]
-#: The probe's scans are static (nothing moves the robot). A wall the CBF's rows reach with either of its
-#: look-aheads [m] (the ROSbot's R + margin is 0.18 m): one only the 0.1 m look-ahead reaches stops binding
-#: once the filter, held back for 0.5 s, shortens it, and the robot would advance towards it.
-NEAR = 0.3
-#: A wall at the body's margin [m]: held back there with any look-ahead, a deadlock builds up.
-AT_MARGIN = 0.19
 NODE = "/safenav_filter"
 #: Nodes the probe watches: label -> (node name, output topic).
 WATCHED = {"node": (NODE, "cmd_vel"), "cloud_only": ("/cloud_only", "cmd_vel_cloud_only"),
@@ -203,13 +197,13 @@ class Ros1Probe(Probe):
 
 
 def node_scenario(probe: Probe) -> dict[str, Any]:
-    """Free space, a wall ``NEAR`` ahead, a scan that stops, ``~/enable`` off, malformed scans, recovery."""
+    """Free space, a wall 0.4 m ahead, a scan that stops, ``~/enable`` off, malformed scans, recovery."""
     robot = preset("rosbot")
     free = fill_scan(probe.scan_message(), robot.scan(), "laser")
-    near_wall = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=NEAR))), "laser")
-    short = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=NEAR))), "laser")
+    near_wall = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=0.4))), "laser")
+    short = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=0.4))), "laser")
     short.ranges = [1.0] * 10
-    nan_angles = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=NEAR))), "laser")
+    nan_angles = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=0.4))), "laser")
     nan_angles.angle_min = math.nan
     phases: dict[str, Any] = {}
     phases["discovery"] = probe.drive(30.0, free, until=lambda states: _reports(states["node"], "ok"))
@@ -227,14 +221,14 @@ def node_scenario(probe: Probe) -> dict[str, Any]:
 
 
 def cloud_scenario(probe: Probe) -> dict[str, Any]:
-    """Point clouds: free, a wall ``NEAR`` ahead that only the cloud shows (the scan stays free), a malformed
+    """Point clouds: free, a wall 0.4 m ahead that only the cloud shows (the scan stays free), a malformed
     cloud, recovery. ``/safenav_filter`` has a scan and a depth-camera cloud source, ``/cloud_only`` a
     3D-lidar cloud source alone (both clouds from the one ``cloud`` topic; see ``clouds.py``).
     """
     free_scan = fill_scan(probe.scan_message(), preset("rosbot").scan(), "laser")
     free, near_wall = probe.cloud_message(cloud_fields(wall_points(None))), \
-        probe.cloud_message(cloud_fields(wall_points(NEAR)))
-    malformed = probe.cloud_message(cloud_fields(wall_points(NEAR)))
+        probe.cloud_message(cloud_fields(wall_points(0.4)))
+    malformed = probe.cloud_message(cloud_fields(wall_points(0.4)))
     malformed.row_step += 12           # the data no longer holds height * row_step bytes
 
     def both_ok(states: dict[str, list[dict[str, Any]]]) -> bool:
@@ -250,11 +244,11 @@ def cloud_scenario(probe: Probe) -> dict[str, Any]:
 
 
 def escape_scenario(probe: Probe) -> dict[str, Any]:
-    """A forward command into a wall at the body's margin, long enough for a deadlock: ``/safenav_filter`` runs
+    """A forward command into a wall at the margin, long enough for a deadlock: ``/safenav_filter`` runs
     with the default parameters (the escape on), ``/no_escape`` with ``escape: false``."""
     robot = preset("rosbot")
     free = fill_scan(probe.scan_message(), robot.scan(), "laser")
-    at_margin = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=AT_MARGIN))), "laser")
+    at_margin = fill_scan(probe.scan_message(), synthetic_scan(robot, Scene.of(wall(distance=0.39))), "laser")
 
     def both_ok(states: dict[str, list[dict[str, Any]]]) -> bool:
         return all(_reports(states[label], "ok") for label in ("node", "no_escape"))

@@ -212,7 +212,7 @@ def test_state_is_json_safe_and_diagnostics_rate_limited_and_markers_optional():
 def _drive_into_a_wall(core, out, seconds: float):
     state = None
     for k in range(round(seconds / 0.05)):
-        core.on_scan("scan", scan_message(0.19), 0.05 * k)    # a wall at the body's margin, straight ahead
+        core.on_scan("scan", scan_message(0.39), 0.05 * k)    # a wall at the margin, straight ahead
         core.on_command(twist(0.5, 0.0), 0.05 * k)
         state = core.tick(0.05 * k, out)
     return state

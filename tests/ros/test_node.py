@@ -56,7 +56,7 @@ def test_node_brakes_times_out_passes_through_and_survives_malformed_scans(graph
     assert all(o[1:] == [0.5, 0.0] for o in free)
     assert not any(s["intervened"] for s in phases["free"]["states"] if s["t"] >= phases["free"]["begin"] + SETTLE)
 
-    # A wall 0.3 m ahead (probe.NEAR): the filter slows the forward command, and says it intervened.
+    # A wall 0.4 m ahead: the filter slows the forward command, and says it intervened.
     wall = _outputs_after(phases["wall"], SETTLE)
     assert wall and all(0.0 <= o[1] <= 0.3 for o in wall), wall
     assert "ok" in _statuses(phases["wall"])
@@ -126,7 +126,7 @@ def test_point_cloud_sources_brake_for_a_wall_only_the_cloud_sees_and_survive_a_
         free = _outputs_after(seen["free"], SETTLE)
         assert len(free) >= 10 and all(o[1:] == [0.5, 0.0] for o in free), (label, free, context)
 
-        # A wall 0.3 m ahead (probe.NEAR) in the cloud only (the scan stays free): the forward command is slowed.
+        # A wall 0.4 m ahead in the cloud only (the scan stays free): the forward command is slowed.
         wall = _outputs_after(seen["wall"], SETTLE)
         assert wall and all(0.0 <= o[1] <= 0.3 for o in wall), (label, wall)
         settled = [s for s in seen["wall"]["states"] if s["t"] >= seen["wall"]["begin"] + SETTLE]
