@@ -101,6 +101,10 @@ class Episode:
         period: how long each command is really held [s] (default ``dt``); the filter is told
             the time (``now``), so a longer period is a late call it must plan for.
         escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
+        passage: ``(period, duty)``: the adversary sets the filter's ``passage`` flag (the CBF's
+            narrow look-ahead) for the first ``duty`` share of every ``period`` [s]; empty: never.
+            The guarantee holds whatever a caller does with the flag. Not with ``escape`` (the
+            escape sets it itself).
     """
 
     robot: str
@@ -119,6 +123,7 @@ class Episode:
     settings: dict[str, Any] = field(default_factory=dict)
     period: float | None = None
     escape: bool = False
+    passage: tuple[float, ...] = ()
 
     def to_json(self) -> str:
         """One line that :func:`Episode.from_json` (and ``--replay``) turns back into this episode."""
@@ -130,7 +135,7 @@ class Episode:
         for name in ("circles", "segments"):
             if name in data:
                 data[name] = tuple(tuple(item) for item in data[name])
-        for name in ("params", "velocity"):
+        for name in ("params", "velocity", "passage"):
             if name in data:
                 data[name] = tuple(data[name])
         return cls(**data)
@@ -422,6 +427,9 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         t = step * period
         scan = _scan(robot, scene, pose, episode.noise, rng, t)
         u_nom = policy(t, scan, pose)
+        if episode.passage and not episode.escape:
+            passage_period, duty = episode.passage
+            safety.passage = (t % passage_period) < duty * passage_period
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
@@ -471,7 +479,7 @@ def _unit(x: np.ndarray, i: int) -> float:
 
 GEOMETRIES = ("poles", "wall", "door", "poles_and_wall")
 """Obstacle layouts the search places around the start pose."""
-N_COORDINATES = 18
+N_COORDINATES = 20
 
 
 def _pick(unit: float, options: Sequence[str]) -> str:
@@ -564,13 +572,16 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
     start_velocity = (0.0, 0.0)
     if give_velocity and u[15] > 0.5:   # start already moving, at up to half the limits
         start_velocity = ((u[15] - 0.5) * v_scale, (u[14] - 0.5) * spec.omega_max)
+    # The filter's passage flag (the CBF's narrow look-ahead), switched by the adversary: never, or for a
+    # share of every period of 0.05-2 s.
+    passage = () if u[18] < 0.25 else (0.05 + 1.95 * u[19], (u[18] - 0.25) / 0.75)
     settings = dict(settings or {})
     if base == "lag":   # the guarantee covers a lagging base the filter is told about
         settings.setdefault("time_constant", dt)
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
-                   seed=int(1e6 * u[0]) % 10_000, settings=settings)
+                   seed=int(1e6 * u[0]) % 10_000, settings=settings, passage=passage)
 
 
 @dataclass(frozen=True)

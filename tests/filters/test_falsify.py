@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, Episode, decode, episodes_per_cell, run, search
+from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, TOLERANCE, Episode, decode, episodes_per_cell, run, search
 from safenav import preset
 from safenav.filters import make_filter
 
@@ -30,11 +30,24 @@ def test_short_adversarial_search_finds_no_violation(cell):
 
 
 def test_an_episode_replays_from_its_json_line_exactly():
-    episode = decode([0.3] * 18, robot="m2wr", filter_name="cbf", base="lag", dt=0.05, give_velocity=True,
-                     geometry="poles", nominal="bang_bang", margin=0.04)
+    episode = decode([0.3] * 18 + [0.8, 0.3], robot="m2wr", filter_name="cbf", base="lag", dt=0.05,
+                     give_velocity=True, geometry="poles", nominal="bang_bang", margin=0.04)
+    assert episode.passage == pytest.approx((0.05 + 1.95 * 0.3, (0.8 - 0.25) / 0.75))
     again = Episode.from_json(episode.to_json())
     assert again == episode
     assert run(again)[0] == run(episode)[0]
+
+
+def test_the_adversary_switches_the_cbfs_passage_flag():
+    """The narrow look-ahead is in the search: a schedule of the ``passage`` flag reaches the filter."""
+    base = dict(robot="rosbot", filter="cbf", base="ramp_limit", dt=0.05, segments=((0.5, -2.0, 0.5, 2.0),),
+                nominal="arc", params=(0.8, 0.0), duration=2.0)
+    flagged, log = run(Episode(**base, passage=(0.4, 0.5)), record=True)
+    plain, plain_log = run(Episode(**base), record=True)
+    assert not flagged.contact and flagged.min_clearance >= flagged.margin - TOLERANCE
+    assert any("look-ahead 0 m" in row["message"] for row in log)
+    assert not any("look-ahead 0 m" in row["message"] for row in plain_log)
+    assert flagged.min_clearance < plain.min_clearance      # the flag lets the body nearer the wall
 
 
 def test_a_naive_robot_is_caught():
