@@ -619,6 +619,7 @@ class CBFSafetyFilter(SafetyFilter):
 
     def _on_reset(self) -> None:
         self._use_lookahead(float(self.config.lookahead))
+        self._short_barrier = -math.inf
 
     def _shortened(self, result: FilterResult) -> FilterResult:
         """``result`` (built with the shortest look-ahead) with its reason saying so."""
