@@ -56,7 +56,8 @@ from safenav.experiments import (
 from safenav.experiments.runner import reproducible_settings, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
-from safenav.filters import FILTER_NAMES, FILTERS
+from safenav.filters import ESCAPE_SUFFIX, FILTER_NAMES, FILTERS
+from safenav.filters.mpc.config import REFERENCES
 from safenav.scenarios import scenario
 from safenav.sim_bullet import SimConfig
 
@@ -93,6 +94,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--odometry", action="store_true",
                         help="also give the filters the odometry pose (default: the measured velocity only, "
                              "so remembered points are carried by dead reckoning)")
+    parser.add_argument("--mpc-reference", choices=REFERENCES, default="nominal",
+                        help="what the MPC rows track: nominal (the default filter) or cbf (MPCConfig.reference="
+                             "'cbf': the CBF's answer, braking as early as the CBF) (default: nominal)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -122,10 +126,15 @@ def _sweep(args: argparse.Namespace) -> int:
         specs = [dataclasses.replace(spec, odometry=True) for spec in specs]
     if not args.real_time:   # the same seed, the same episode, whatever the machine's load
         specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter)) for spec in specs]
+    if args.mpc_reference != "nominal":
+        tracking = {"reference": args.mpc_reference}
+        specs = [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **tracking})
+                 if spec.filter.removesuffix(ESCAPE_SUFFIX) == "mpc" else spec for spec in specs]
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
-          f"{' and the odometry pose' if args.odometry else ' only'}")
+          f"{' and the odometry pose' if args.odometry else ' only'}"
+          f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))

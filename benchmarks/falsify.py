@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import itertools
 import json
 import math
 import sys
@@ -48,6 +49,7 @@ from benchmarks.common import SHIPPED, run_cli, where
 from safenav._optional import require
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter
+from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
 from safenav.robot import RobotSpec, preset
@@ -743,23 +745,25 @@ def _has_body(filter_name: str, robot: str, body: str) -> bool:
 
 
 def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
-           geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",)
-           ) -> list[dict[str, Any]]:
-    """One search per robot, filter, body, period and base (with and without odometry for the instant
-    base); the geometry and the nominal are searched inside each."""
+           geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
+           mpc_references: Sequence[str] = ("nominal",)) -> list[dict[str, Any]]:
+    """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
+    odometry for the instant base); the geometry and the nominal are searched inside each."""
     cells = []
     for robot in robots:
         for filter_name in filters:
-            for body in bodies:
+            references = mpc_references if filter_name.removesuffix("+escape") == "mpc" else ("nominal",)
+            for body, reference in itertools.product(bodies, references):
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model
+                settings = ({} if body == "disk" else {"body": body}) | (
+                    {} if reference == "nominal" else {"reference": reference})
                 for dt in dts:
                     for base in bases:
                         for give_velocity in ((True, False) if base == "instant" else (True,)):
                             cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
                                               give_velocity=give_velocity, geometry=tuple(geometries),
-                                              nominal=tuple(nominals),
-                                              settings={} if body == "disk" else {"body": body}))
+                                              nominal=tuple(nominals), settings=dict(settings)))
     return cells
 
 
@@ -769,7 +773,9 @@ def cell_margin(cell: dict[str, Any]) -> float:
 
 
 def _cell_key(cell: dict[str, Any]) -> str:
-    return f"{cell['robot']}/{cell['filter_name']}" + ("/cover" if cell.get("settings") else "")
+    settings = cell.get("settings", {})
+    return "/".join((cell["robot"], cell["filter_name"], *([settings["body"]] if "body" in settings else []),
+                     *([f"{settings['reference']}-reference"] if "reference" in settings else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -806,6 +812,8 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
     parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
     parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
+    parser.add_argument("--mpc-reference", nargs="+", default=["nominal"], choices=REFERENCES,
+                        help="what the MPC cells track (each a cell of its own): nominal, cbf (default: nominal)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -828,7 +836,8 @@ def _run(args: argparse.Namespace) -> int:
                   f"{row['message']}")
         print(outcome)
         return 0 if not outcome.violated else 1
-    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies)
+    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies,
+                   args.mpc_reference)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

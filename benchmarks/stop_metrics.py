@@ -55,7 +55,8 @@ from benchmarks.common import markdown_table, names, run_cli, run_sweep, sweep_p
 from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments.runner import reproducible_settings
-from safenav.filters import FILTER_NAMES, make_filter
+from safenav.filters import ESCAPE_SUFFIX, FILTER_NAMES, make_filter
+from safenav.filters.mpc.config import REFERENCES
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
 from safenav.robot import PRESET_NAMES, preset
@@ -201,6 +202,7 @@ class StopJob:
     pass_gap: float = 0.3
     stay: float = 5.0
     real_time: bool = False
+    mpc_reference: str = "nominal"
 
 
 @dataclass(frozen=True)
@@ -251,6 +253,8 @@ def run_job(job: StopJob) -> dict[str, Any]:
     plan = script(job)
     config = EpisodeConfig(duration=plan.duration, stop_on_collision=False)
     settings = {} if job.real_time else reproducible_settings(job.filter)
+    if _is_mpc(job.filter):
+        settings["reference"] = job.mpc_reference
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **settings)
     started = time.perf_counter()
     result = run_episode(plan.world, robot, Cruise(CRUISE_SPEED[job.robot]), safety_filter, config=config,
@@ -287,13 +291,24 @@ def passes(row: dict[str, Any]) -> bool:
     return row["collisions"] == 0 and all(check for value, check in checks if not math.isnan(value))
 
 
+def _is_mpc(name: str) -> bool:
+    return name.removesuffix(ESCAPE_SUFFIX) == "mpc"
+
+
+def label(record: dict[str, Any]) -> str:
+    """The row name of an episode's filter: ``mpc (cbf reference)`` for the MPC tracking the CBF."""
+    reference = record.get("mpc_reference", "nominal")
+    return record["filter"] if not _is_mpc(record["filter"]) or reference == "nominal" else \
+        f"{record['filter']} ({reference} reference)"
+
+
 def summarise(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (robot, filter): the worst step-in metrics and the worst pass-beside false stops."""
     rows = []
-    keys = sorted({(r["robot"], r["filter"]) for r in records},
-                  key=lambda key: (PRESET_NAMES.index(key[0]), FILTER_NAMES.index(key[1])))
-    for robot, name in keys:
-        mine = [r for r in records if (r["robot"], r["filter"]) == (robot, name)]
+    keys = sorted({(r["robot"], r["filter"], label(r)) for r in records},
+                  key=lambda key: (PRESET_NAMES.index(key[0]), FILTER_NAMES.index(key[1]), key[2]))
+    for robot, _, name in keys:
+        mine = [r for r in records if (r["robot"], label(r)) == (robot, name)]
         stepping = worst([r for r in mine if r["episode"] == "step_in"])
         passing = worst([r for r in mine if r["episode"] == "pass_beside"])
         row = {"robot": robot, "filter": name,
@@ -347,6 +362,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                         help="pass-beside: the walker passes this far beside the body [m] (default: 0.3)")
     parser.add_argument("--stay", type=argument_type(positive), default=5.0,
                         help="step-in: how long the walker stands in the path [s] (default: 5, as in Nav2's bag)")
+    parser.add_argument("--mpc-reference", type=names, default=["nominal"], metavar="A,B",
+                        help="what the MPC rows track, each a row of its own: nominal (the default filter), "
+                             "cbf (MPCConfig.reference='cbf': brakes as early as the CBF) (default: nominal)")
     parser.add_argument("--quick", action="store_true", help="one seed")
 
 
@@ -358,10 +376,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "stop_metrics") -> int:
 def _run(args: argparse.Namespace) -> int:
     robots = [choice("robot", name, tuple(CRUISE_SPEED)) for name in args.robots]
     filters = [choice("filter", name, FILTER_NAMES) for name in args.filters]
+    references = [choice("MPC reference", name, REFERENCES) for name in args.mpc_reference]
     seeds = 1 if args.quick else args.seeds
     jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay,
-                    real_time=args.real_time)
-            for robot in robots for name in filters for episode in EPISODES for seed in range(seeds)]
+                    real_time=args.real_time, mpc_reference=reference)
+            for robot in robots for name in filters for reference in (references if _is_mpc(name) else ["nominal"])
+            for episode in EPISODES for seed in range(seeds)]
     print(f"{len(jobs)} episodes: {len(robots)} robots x {len(filters)} filters x {len(EPISODES)} episodes x "
           f"{seeds} seeds, on {where(args)}")
     records, wall = run_sweep(args, run_job, jobs, description="stop metrics",

@@ -35,7 +35,7 @@ import numpy as np
 from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters.body import BodyModel
-from safenav.filters.perception import Frontier, PointMemory, beam_points, unknown_region
+from safenav.filters.perception import Frontier, PointMemory, beam_points, dead_reckoning, unknown_region
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
@@ -111,7 +111,8 @@ class Reason:
             ``"sweep"``, ``"gap"``, ``"blind"``, ``"plan"``), ``"limits"`` (velocity limits),
             ``"acceleration"`` (not reachable within one period), or the cause of a braking
             status (``"stale"``, ``"late"``, ``"no_data"``, ``"bad_input"``, ``"solver"``,
-            ``"deadline"``, ``"unknown"``, ``"zone"``).
+            ``"deadline"``, ``"unknown"``, ``"zone"``), or ``"reference"`` (an MPC that tracks a CBF took
+            the CBF's answer; with the CBF's reason, its family).
         detail: one human-readable sentence.
         point: the obstacle point behind it, base frame [m] (``None`` when there is none).
     """
@@ -568,15 +569,11 @@ class SafetyFilter(abc.ABC):
             self.memory.carry(last_pose.inverse().compose(odometry))
             return
         if self._last_velocity is not None and last_velocity is not None:
-            # The velocity moved from the last measurement to this one (monotonically for every base
-            # model covered): the trapezoid is exact for a linear ramp, and off by at most half the change.
-            mean = 0.5 * (last_velocity + self._last_velocity)
-            change = np.abs(self._last_velocity - last_velocity)
-            error = (0.5 * elapsed * change[0], 0.5 * elapsed * change[1])
-        else:
-            # No odometry: the base is assumed to have executed the last command (an instant base).
-            mean, error = self._last_command, (0.0, 0.0)
-        self.memory.carry(unicycle_step(Pose2D(), float(mean[0]), float(mean[1]), elapsed), error)
+            # Between the two measurements, with the error bound of A5 (perception.dead_reckoning).
+            self.memory.carry(*dead_reckoning(last_velocity, self._last_velocity, elapsed))
+            return
+        # No odometry: the base is assumed to have executed the last command (an instant base).
+        self.memory.carry(unicycle_step(Pose2D(), float(self._last_command[0]), float(self._last_command[1]), elapsed))
 
     def _screened(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], current: np.ndarray | None,
                   scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:

@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from safenav.filters.body import BodyModel
-from safenav.geometry import TWO_PI, Pose2D
+from safenav.geometry import TWO_PI, Pose2D, unicycle_step
 from safenav.scan import LaserScan, Reading
 
 __all__ = [
@@ -44,6 +44,7 @@ __all__ = [
     "PointMemory",
     "beam_points",
     "body_clearance",
+    "dead_reckoning",
     "nearest_per_bin",
     "obstacle_beams",
     "unknown_beams",
@@ -363,6 +364,34 @@ class PointMemory:
             points, uncertainty = points[order], uncertainty[order]
         self._points, self._uncertainty = points, uncertainty
         self._frame, self._error = Pose2D(), np.zeros(2)
+
+
+def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[Pose2D, tuple[float, float]]:
+    """The base's motion between two velocity measurements, and the bound of its error (A5).
+
+    Each component of the base's velocity moves monotonically from the measurement ``start`` to
+    the measurement ``end`` (A4, and any base that gets there late, after a delay), so the
+    distance [m] (and the angle [rad]) covered lies between ``start elapsed`` and
+    ``end elapsed``. The estimate is the middle of that interval, the trapezoid
+    ``(start + end) elapsed / 2``, off by at most ``|end - start| elapsed / 2``; the motion is
+    the arc of those mean velocities. (A4's bases get there no later than a linear ramp, which
+    would allow a quarter; the half also covers a base whose velocity follows the command with a
+    delay, as real bases do.)
+
+    Args:
+        start: ``(v, omega)`` measured at the previous call [m/s, rad/s].
+        end: ``(v, omega)`` measured now [m/s, rad/s].
+        elapsed: time between the two measurements [s].
+
+    Returns:
+        ``(motion, (e_translation, e_rotation))``: the new base frame in the old one [m, m, rad],
+        and the bound of the error of its distance [m] and of its angle [rad]; a point ``d`` from
+        the base is off by at most ``e_translation + d e_rotation`` after the motion.
+    """
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    mean, change = 0.5 * (start + end), np.abs(end - start)
+    motion = unicycle_step(Pose2D(), float(mean[0]), float(mean[1]), elapsed)
+    return motion, (0.5 * elapsed * float(change[0]), 0.5 * elapsed * float(change[1]))
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> np.ndarray:

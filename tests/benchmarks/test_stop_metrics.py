@@ -14,8 +14,10 @@ from benchmarks.stop_metrics import (
     StopJob,
     StopThresholds,
     first_sustained,
+    label,
     main,
     passes,
+    run_job,
     script,
     stop_metrics,
 )
@@ -128,3 +130,22 @@ def test_the_script_form_runs_from_anywhere(tmp_path):
     done = subprocess.run([sys.executable, str(script_path), "--help"], cwd=tmp_path, capture_output=True, text=True,
                           check=False)
     assert done.returncode == 0 and "time-to-stop" in done.stdout
+
+
+@pytest.mark.sim
+@pytest.mark.parametrize("robot", ["rosbot", "puzzlebot"])
+def test_the_mpc_tracking_the_cbf_stops_within_the_collision_monitors_time_and_the_plain_one_does_not(robot):
+    """A walker steps in 0.25 m ahead: the plain MPC keeps its speed until its plan must brake (0.74-1.22 s);
+    tracking the CBF's answer (``reference="cbf"``) it brakes when the CBF does, within Nav2's 0.6 s."""
+    plain = run_job(StopJob(robot, "mpc", "step_in", seed=0, gap=0.25))
+    tracked = run_job(StopJob(robot, "mpc", "step_in", seed=0, gap=0.25, mpc_reference="cbf"))
+    assert plain["time_to_stop"] > NAV2_LIMITS["time_to_stop"]
+    assert tracked["time_to_stop"] <= NAV2_LIMITS["time_to_stop"]
+    assert tracked["hold_stop"] >= NAV2_LIMITS["hold_stop"]
+    assert not tracked["collided"] and tracked["min_clearance"] > plain["min_clearance"]
+    assert label(tracked) == "mpc (cbf reference)" and label(plain) == "mpc"
+
+
+def test_an_unknown_mpc_reference_is_a_usage_error(capsys):
+    assert main(["--filters", "mpc", "--mpc-reference", "zones", "--quick", "--no-progress"]) == 2
+    assert "zones" in capsys.readouterr().err

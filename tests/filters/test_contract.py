@@ -23,8 +23,9 @@ from safenav.filters import (
     lambda robot, dt: CBFSafetyFilter(robot, dt),
     lambda robot, dt: CBFSafetyFilter(robot, dt, body="cover"),
     lambda robot, dt: MPCSafetyFilter(robot, dt),
+    lambda robot, dt: MPCSafetyFilter(robot, dt, reference="cbf"),
     lambda robot, dt: ZonesFilter(robot, dt),
-], ids=["cbf", "cbf-cover", "mpc", "zones"])
+], ids=["cbf", "cbf-cover", "mpc", "mpc-cbf-reference", "zones"])
 def test_every_shipped_filter_meets_the_contract(make):
     checked = check_filter(make)
     assert len(checked) == 3

@@ -16,6 +16,7 @@ import pytest
 
 from safenav import SafeNavError, preset
 from safenav.errors import InvalidConfig, UnknownName
+from safenav.filters import MPCSafetyFilter
 from safenav.ros import PARAMETERS, NodeConfig, SafetyCore
 from safenav.synthetic import Scene, synthetic_scan, wall
 from tests.ros.clouds import BAND, CLOUD_MOUNT, cloud_fields, cloud_parameters, wall_points
@@ -45,6 +46,13 @@ def test_robot_overrides_filter_settings_and_sources():
     (source,) = config.sources
     assert (source.topic, tuple(source.mount), source.timeout) == ("/lidar/scan", (0.1, 0.0, math.pi), 0.3)
     assert config.stamped
+
+
+def test_the_node_builds_the_mpc_that_tracks_the_cbf_from_its_parameters():
+    config = NodeConfig.from_parameters({"filter": "mpc", "mpc.reference": "cbf"})
+    assert dict(config.filter_settings) == {"reference": "cbf"}
+    safety = MPCSafetyFilter(config.robot, config.control_period, **config.filter_kwargs())
+    assert safety.reference is not None and safety.reference.margin == safety.margin
 
 
 BAD_PARAMETERS = [

@@ -21,6 +21,7 @@ __all__ = [
     "DEFAULT_COMMANDS",
     "DEFAULT_HORIZON_TIME",
     "HESSIANS",
+    "REFERENCES",
     "MPCConfig",
     "available_mpc_solvers",
 ]
@@ -37,6 +38,8 @@ DIRECT_POINTS, CASADI_POINTS = 64, 32
 CONIC_PLUGINS = ("daqp", "qrqp", "osqp", "qpoases", "hpipm", "proxqp", "highs")
 HESSIANS = ("gauss-newton", "exact")
 BODIES = ("disk", "cover")
+#: What a plan can track: the nominal command, or a CBF filter's answer to it.
+REFERENCES = ("nominal", "cbf")
 
 
 def available_mpc_solvers() -> list[str]:
@@ -99,6 +102,15 @@ class MPCConfig:
             [s^2/m^2, s^2/rad^2]; default ``(1 / v_max^2, 0.2 / omega_max^2)`` as the CBF filter.
         tracking: weight of the later commands' deviations from the nominal held along the plan,
             in all, relative to the first command's (0: only the first command counts).
+        reference: what the plan tracks. ``"nominal"`` (default): the nominal command; a plan
+            keeps its speed until it has to brake, so it stops late in front of an obstacle that
+            steps into the path, and it plans round what a barrier filter would stop at.
+            ``"cbf"``: the answer of a :class:`~safenav.filters.CBFSafetyFilter` with the same
+            margin, body and base settings to the nominal (one CBF call per call, within the
+            compute budget): the plan brakes as early as that filter, in front of a person
+            stepping in as a stop zone would (ROS 2's collision-monitor thresholds), and steers
+            as it does. Only the cost changes: the constraints, the verification of every
+            answer against every point, and so the guarantee, are the MPC's own.
         slack_weight: linear and quadratic cost of the relaxation of the clearance rows [1/m, 1/m^2].
         max_iter: SQP iterations per solve.
         max_rounds: solves with missed points swapped into the slots before the call counts as failed.
@@ -135,6 +147,7 @@ class MPCConfig:
     hessian: str = "gauss-newton"
     weights: tuple[float, float] | None = None
     tracking: float = 1.0
+    reference: str = "nominal"
     slack_weight: float = 1e4
     max_iter: int = 30
     max_rounds: int = 4
@@ -170,6 +183,7 @@ class MPCConfig:
         if self.weights is not None:
             _checks.pair(name + "weights", self.weights, low=0.0, low_open=True)
         _checks.number(name + "tracking", self.tracking, low=0.0, high=1e3)
+        _checks.choice("MPC reference", self.reference, REFERENCES)
         _checks.number(name + "slack_weight", self.slack_weight, low=1.0, high=1e9)
         _checks.integer(name + "max_iter", self.max_iter, low=1, high=10000)
         _checks.integer(name + "max_rounds", self.max_rounds, low=1, high=100)

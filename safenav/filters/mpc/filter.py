@@ -9,15 +9,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig
-from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
+from safenav.filters.cbf import CBFSafetyFilter
 from safenav.filters.mpc.config import MPCConfig
 from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
 from safenav.filters.mpc.plan import (
@@ -124,7 +125,12 @@ class MPCSafetyFilter(SafetyFilter):
     omega_nom)^2]`` with ``c_0 = 1`` and ``c_k = tracking / (P - 1)``, plus the buffer and the
     slack costs (:mod:`safenav.filters.mpc.sqp`). A plan that brakes in front of an obstacle
     pays for every later period it is slower than the nominal; one that steers round it pays
-    only the (cheaper, ``STEERING_PREFERENCE``) turn: the filter steers where it can.
+    only the (five times cheaper) turn: the filter steers where it can. With
+    ``reference="cbf"`` the plan tracks the answer of :attr:`reference` (a CBF filter with the
+    same margin and body, called first) instead of the nominal: it brakes when the CBF does, in
+    front of a person stepping in, rather than as late as its plan allows. Only the target
+    moves; constraints, verification and fallbacks are unchanged, and the result keeps the
+    nominal as ``u_nom``.
 
     **Minimal intervention (fast path).** The candidate "``u_nom`` clipped to the reachable
     box, then brake at the acceleration limits to a stop" is checked against every bound and
@@ -237,6 +243,16 @@ class MPCSafetyFilter(SafetyFilter):
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
         self._commands: np.ndarray | None = None
+        #: The filter whose answer the plan tracks (``reference="cbf"``), else ``None``.
+        self.reference: CBFSafetyFilter | None = None
+        if cfg.reference == "cbf":
+            self.reference = CBFSafetyFilter(
+                robot, dt, margin=self.margin, body="disk" if cfg.body == "disk" else "cover", n_disks=cfg.n_disks,
+                time_constant=cfg.time_constant, max_gap=cfg.max_gap, side_tolerance=cfg.side_tolerance,
+                scan_timeout=cfg.scan_timeout, compensate_latency=cfg.compensate_latency,
+                memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time)
+        self._referenced: FilterResult | None = None    # the reference's answer of this call
+        self._call_start: float | None = None
 
     def _inflation(self, hold: int) -> tuple[np.ndarray, np.ndarray, float, float]:
         """Each disk's guaranteed radius ``r_d``, actuator error ``e_act_d``, the buffer and the part of
@@ -320,6 +336,29 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _on_reset(self) -> None:
         self._commands = None
+        if self.reference is not None:
+            self.reference.reset()
+
+    def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
+               pose: Any = None, scan_age: Any = None, now: float | None = None) -> FilterResult:
+        """Filter one nominal command (see :meth:`SafetyFilter.filter`; same arguments).
+
+        With ``reference="cbf"`` the reference CBF filters ``u_nom`` first (with the same
+        arguments and :attr:`passage`) and the plan tracks its answer; the result keeps
+        ``u_nom``, and its time and compute budget include the reference's call.
+        """
+        start = time.perf_counter()
+        try:
+            if self.reference is not None:
+                self._call_start = self.clock()     # the budget covers the reference's call too
+                self.reference.passage = self.passage
+                self._referenced = self.reference.filter(u_nom, scan, velocity=velocity, pose=pose,
+                                                         scan_age=scan_age, now=now)
+            result = super().filter(u_nom, scan, velocity=velocity, pose=pose, scan_age=scan_age, now=now)
+        finally:
+            self._referenced, self._call_start = None, None
+        object.__setattr__(result, "filter_time", time.perf_counter() - start)
+        return result
 
     def _on_brake(self) -> None:
         self._commands = None
@@ -463,7 +502,29 @@ class MPCSafetyFilter(SafetyFilter):
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
-        deadline = self.clock() + self.budget
+        referenced = self._referenced
+        if referenced is None:
+            return self._plan_for(u_nom, view, velocity, period)
+        return self._tracked(self._plan_for(np.array(referenced.u, dtype=float), view, velocity, period), u_nom,
+                             referenced)
+
+    def _tracked(self, result: FilterResult, u_nom: np.ndarray, referenced: FilterResult) -> FilterResult:
+        """``result`` of the plan that tracked the reference's answer, told against ``u_nom``."""
+        reason = result.reason
+        if reason is None and not np.array_equal(result.u, u_nom):
+            # The plan took the reference's answer: the reference says why it differs from u_nom.
+            told, status = referenced.reason, referenced.status
+            source = f"the {self.config.reference} reference" + (
+                "" if status is FilterStatus.OK else f" ({status.value})")
+            reason = (Reason("reference", f"{source}'s answer") if told is None
+                      else Reason(told.family, f"{source}: {told.detail}", told.point))
+            message = str(reason) + (f"; {result.message}" if result.message else "")
+            return _replace(result, u_nom=_frozen(u_nom, (2,)), reason=reason, message=message)
+        return _replace(result, u_nom=_frozen(u_nom, (2,)))
+
+    def _plan_for(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        """The verified plan that tracks ``u_nom`` (the nominal, or the reference's answer), as a result."""
+        deadline = (self._call_start if self._call_start is not None else self.clock()) + self.budget
         start = self._last_command if velocity is None else velocity
         hold = min(self.horizon - 1, max(1, math.ceil(period / self.dt - 1e-6)))
         problem = self._problem(u_nom, view, start, hold)

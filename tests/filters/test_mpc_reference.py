@@ -1,0 +1,85 @@
+"""The MPC that tracks a CBF's answer (``reference="cbf"``): it brakes when the CBF does, and only its cost changed.
+
+Attack first: the reference only moves the plan's target, so every answer must still pass the
+MPC's own verification; closed loops with the adversary's base models and geometries (the
+falsifier's simulator) must keep the margin, and a target the plan cannot follow (the CBF's
+answer to a robot already moving fast at a wall) must not loosen anything.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks.falsify import TOLERANCE, Episode, run
+from safenav import UnknownName, preset
+from safenav.errors import SafeNavError
+from safenav.filters import CBFSafetyFilter, FilterStatus, MPCConfig, MPCSafetyFilter
+from safenav.filters.escape import Escape
+from safenav.synthetic import Scene, Segment, synthetic_scan
+
+DT = 0.05
+
+
+def _wall_ahead(robot_name: str, distance: float):
+    robot = preset(robot_name)
+    x = robot.radius + distance
+    return robot, synthetic_scan(robot, Scene.of(Segment((x, -2.0), (x, 2.0))))
+
+
+@pytest.mark.parametrize("robot_name", ["rosbot", "puzzlebot", "m2wr"])
+def test_with_the_cbf_reference_the_mpc_brakes_when_the_cbf_does(robot_name):
+    # A wall 0.3 m ahead of the body at cruising speed: the plain MPC can still stop later and keeps
+    # the nominal (its fast path); the CBF brakes now, and the MPC tracking it brakes with it.
+    robot, scan = _wall_ahead(robot_name, 0.3)
+    cruise = 0.5 * robot.v_max
+    nominal, velocity = np.array([cruise, 0.0]), np.array([cruise, 0.0])
+    plain = MPCSafetyFilter(robot, DT, budget=math.inf).filter(nominal, scan, velocity=velocity)
+    braking = CBFSafetyFilter(robot, DT).filter(nominal, scan, velocity=velocity)
+    tracked = MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf").filter(nominal, scan, velocity=velocity)
+    assert np.array_equal(plain.u, nominal)
+    assert braking.u[0] < cruise - 1e-3
+    assert tracked.u[0] == pytest.approx(braking.u[0], abs=1e-6)
+    assert np.array_equal(tracked.u_nom, nominal)                  # the result is told against the nominal
+    assert tracked.reason is not None and "cbf reference" in tracked.reason.detail
+    assert tracked.status in (FilterStatus.OK, FilterStatus.RECOVERING)
+
+
+def test_the_reference_is_reset_with_the_filter_and_follows_the_passage_flag():
+    robot, scan = _wall_ahead("rosbot", 0.5)
+    safety = MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf")
+    safety.passage = True
+    safety.filter([0.3, 0.0], scan, velocity=[0.3, 0.0])
+    assert safety.reference is not None and safety.reference.passage and safety.reference.lookahead == 0.0
+    safety.reset()
+    assert not safety.reference.passage and safety.reference._called is False
+
+
+def test_an_unknown_reference_is_refused_with_the_known_ones():
+    with pytest.raises(UnknownName, match="nominal") as caught:
+        MPCConfig(reference="zones")
+    assert isinstance(caught.value, SafeNavError) and isinstance(caught.value, ValueError)
+
+
+@pytest.mark.parametrize(("robot", "base", "dt"), [
+    ("rosbot", "ramp_limit", 0.05), ("puzzlebot", "instant", 0.05), ("m2wr", "ramp", 0.1), ("rosbot", "lag", 0.02),
+])
+def test_tracking_the_cbf_keeps_the_mpcs_guarantee_in_closed_loop(robot, base, dt):
+    # Full speed along an arc into a corner, the adversary's base models: only the target moved,
+    # so the MPC's own plan checks hold the margin as without the reference.
+    settings = {"reference": "cbf", "time_constant": 0.04} if base == "lag" else {"reference": "cbf"}
+    outcome, log = run(Episode(robot=robot, filter="mpc", base=base, dt=dt, nominal="arc", params=(1.0, 0.6),
+                               segments=((1.0, -2.0, 1.0, 2.0), (-1.0, 1.2, 2.0, 1.2)), duration=6.0,
+                               settings=settings), record=True)
+    assert outcome.valid and not outcome.contact
+    assert outcome.min_clearance >= outcome.margin - TOLERANCE, (outcome.min_clearance, outcome.margin)
+    assert any("cbf reference" in row["message"] for row in log)
+
+
+def test_the_escape_wraps_the_mpc_with_its_reference():
+    robot, scan = _wall_ahead("rosbot", 0.2)
+    escape = Escape(MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf"))
+    result = escape.filter([0.4, 0.0], scan, velocity=[0.0, 0.0])
+    assert np.all(np.isfinite(result.u)) and result.u[0] <= 0.4
