@@ -50,6 +50,7 @@ def test_with_the_cbf_reference_the_mpc_brakes_when_the_cbf_does(robot_name):
 def test_the_reference_is_reset_with_the_filter_and_follows_the_passage_flag():
     robot, scan = _wall_ahead("rosbot", 0.5)
     safety = MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf")
+    assert "reference='cbf'" in repr(safety) and "reference='nominal'" in repr(MPCSafetyFilter(robot, DT))
     safety.passage = True
     safety.filter([0.3, 0.0], scan, velocity=[0.3, 0.0])
     assert safety.reference is not None and safety.reference.passage and safety.reference.lookahead == 0.0

@@ -330,7 +330,7 @@ class MPCSafetyFilter(SafetyFilter):
                 f"knots={self.layout.n_knots}, body={self.body.name!r}, n_points={self.n_points}, "
                 f"margin={self.margin:.4f}, inflated_radius={self.inflated_radius:.4f}, buffer={self.buffer:.4f}, "
                 f"time_constant={self.model.time_constant}, budget={self.budget:.4g}, "
-                f"solver={self.backend.name!r})")
+                f"solver={self.backend.name!r}, reference={self.config.reference!r})")
 
     # ------------------------------------------------------------------ hooks
 
