@@ -138,6 +138,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from safenav.experiments import EpisodeSpec, run_spec
+    from safenav.filters import ESCAPE_SUFFIX
     from safenav.scenarios import scenario, scenario_name
     from safenav.sim_bullet import gui_problem
 
@@ -149,11 +150,18 @@ def _run(args: argparse.Namespace) -> int:
     task = scenario(name)
     policy = args.policy or task.policies[0]
     filter_name = escaped(args.filter, not args.no_escape)
-    spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot,
+    options = {}
+    if args.mpc_reference is not None:
+        if filter_name.removesuffix(ESCAPE_SUFFIX) != "mpc":
+            raise InvalidConfig(f"--mpc-reference applies to --filter mpc (what its plan tracks); got --filter "
+                                f"{args.filter}")
+        options["reference"] = args.mpc_reference
+    spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,
                        record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
     _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
-         f"policy {policy}, filter {filter_name}, up to {duration:g} s")
+         f"policy {policy}, filter {filter_name}"
+         f"{f' ({args.mpc_reference} reference)' if args.mpc_reference else ''}, up to {duration:g} s")
     outcome = run_spec(spec)
     _print_summary(outcome)
     title = f"{name}, seed {args.seed}\n{policy} + filter {filter_name}"
@@ -283,6 +291,7 @@ def _benchmark_lines(table: Mapping[str, tuple[str, str]]) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """The ``safenav`` argument parser (one sub-command per job)."""
     from safenav.filters import FILTER_NAMES
+    from safenav.filters.mpc.config import REFERENCES
     from safenav.reference import POLICY_NAMES
     from safenav.robot import PRESET_NAMES
     from safenav.scenarios import RANDOM_WORLDS
@@ -343,6 +352,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-escape", action="store_true",
                      help="drive with the filter alone: no deadlock escape (default: the filter is wrapped in "
                           "safenav.filters.escape.Escape, whose commands pass through the filter)")
+    run.add_argument("--mpc-reference", metavar="REF", type=name_type("MPC reference", REFERENCES), default=None,
+                     help="with --filter mpc, what its plan tracks: nominal (the default) or cbf (the CBF's answer: "
+                          "it brakes as early as the CBF)")
     run.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                      help="seed of the world, the start and the noise (default: 0)")
     run.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,

@@ -227,6 +227,24 @@ def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, cap
     assert f"filter {expected}, up to" in capsys.readouterr().out
 
 
+def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, monkeypatch):
+    specs = []
+
+    def record(spec):
+        specs.append(spec)
+        raise _Stopped
+
+    monkeypatch.setattr(experiments, "run_spec", record)
+    with pytest.raises(_Stopped):
+        main(["run", "--filter", "mpc", "--mpc-reference", "cbf"])
+    assert dict(specs[0].filter_options) == {"reference": "cbf"} and specs[0].filter == "mpc+escape"
+    assert main(["run", "--filter", "cbf", "--mpc-reference", "cbf"]) == 2
+    assert "--mpc-reference applies to --filter mpc" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "--filter", "mpc", "--mpc-reference", "zones"])
+    assert "zones" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(("argv", "tutorial_filters"), [
     ([], ["none", "cbf+escape", "mpc+escape"]),
     (["--no-escape"], ["none", "cbf", "mpc"]),
