@@ -56,7 +56,7 @@ from safenav.experiments import (
 from safenav.experiments.runner import reproducible_settings, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
-from safenav.filters import ESCAPE_SUFFIX, FILTER_NAMES, FILTERS
+from safenav.filters import FILTER_NAMES, FILTERS, unescaped
 from safenav.filters.mpc.config import REFERENCES
 from safenav.scenarios import scenario
 from safenav.sim_bullet import SimConfig
@@ -129,7 +129,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.mpc_reference != "nominal":
         tracking = {"reference": args.mpc_reference}
         specs = [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **tracking})
-                 if spec.filter.removesuffix(ESCAPE_SUFFIX) == "mpc" else spec for spec in specs]
+                 if unescaped(spec.filter) == "mpc" else spec for spec in specs]
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"

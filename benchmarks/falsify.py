@@ -48,7 +48,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
 from benchmarks.common import SHIPPED, run_cli, where
 from safenav._optional import require
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
-from safenav.filters import make_filter
+from safenav.filters import make_filter, unescaped
 from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
@@ -752,7 +752,7 @@ def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], 
     cells = []
     for robot in robots:
         for filter_name in filters:
-            references = mpc_references if filter_name.removesuffix("+escape") == "mpc" else ("nominal",)
+            references = mpc_references if unescaped(filter_name) == "mpc" else ("nominal",)
             for body, reference in itertools.product(bodies, references):
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model

@@ -55,7 +55,7 @@ from benchmarks.common import markdown_table, names, run_cli, run_sweep, sweep_p
 from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments.runner import reproducible_settings
-from safenav.filters import ESCAPE_SUFFIX, FILTER_NAMES, make_filter
+from safenav.filters import FILTER_NAMES, make_filter, unescaped
 from safenav.filters.mpc.config import REFERENCES
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
@@ -253,7 +253,7 @@ def run_job(job: StopJob) -> dict[str, Any]:
     plan = script(job)
     config = EpisodeConfig(duration=plan.duration, stop_on_collision=False)
     settings = {} if job.real_time else reproducible_settings(job.filter)
-    if _is_mpc(job.filter):
+    if unescaped(job.filter) == "mpc":
         settings["reference"] = job.mpc_reference
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **settings)
     started = time.perf_counter()
@@ -291,14 +291,10 @@ def passes(row: dict[str, Any]) -> bool:
     return row["collisions"] == 0 and all(check for value, check in checks if not math.isnan(value))
 
 
-def _is_mpc(name: str) -> bool:
-    return name.removesuffix(ESCAPE_SUFFIX) == "mpc"
-
-
 def label(record: dict[str, Any]) -> str:
     """The row name of an episode's filter: ``mpc (cbf reference)`` for the MPC tracking the CBF."""
     reference = record.get("mpc_reference", "nominal")
-    return record["filter"] if not _is_mpc(record["filter"]) or reference == "nominal" else \
+    return record["filter"] if unescaped(record["filter"]) != "mpc" or reference == "nominal" else \
         f"{record['filter']} ({reference} reference)"
 
 
@@ -380,7 +376,8 @@ def _run(args: argparse.Namespace) -> int:
     seeds = 1 if args.quick else args.seeds
     jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay,
                     real_time=args.real_time, mpc_reference=reference)
-            for robot in robots for name in filters for reference in (references if _is_mpc(name) else ["nominal"])
+            for robot in robots for name in filters
+            for reference in (references if unescaped(name) == "mpc" else ["nominal"])
             for episode in EPISODES for seed in range(seeds)]
     print(f"{len(jobs)} episodes: {len(robots)} robots x {len(filters)} filters x {len(EPISODES)} episodes x "
           f"{seeds} seeds, on {where(args)}")

@@ -138,7 +138,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from safenav.experiments import EpisodeSpec, run_spec
-    from safenav.filters import ESCAPE_SUFFIX
+    from safenav.filters import unescaped
     from safenav.scenarios import scenario, scenario_name
     from safenav.sim_bullet import gui_problem
 
@@ -152,7 +152,7 @@ def _run(args: argparse.Namespace) -> int:
     filter_name = escaped(args.filter, not args.no_escape)
     options = {}
     if args.mpc_reference is not None:
-        if filter_name.removesuffix(ESCAPE_SUFFIX) != "mpc":
+        if unescaped(filter_name) != "mpc":
             raise InvalidConfig(f"--mpc-reference applies to --filter mpc (what its plan tracks); got --filter "
                                 f"{args.filter}")
         options["reference"] = args.mpc_reference

@@ -46,7 +46,7 @@ from safenav.episode import EpisodeConfig, EpisodeMetrics, Trajectory, run_episo
 from safenav.errors import InvalidConfig
 from safenav.experiments.results import ResultsFile, job_name
 from safenav.experiments.specs import EpisodeSpec
-from safenav.filters import ESCAPE_SUFFIX, make_filter
+from safenav.filters import make_filter, unescaped
 from safenav.scenarios import scenario, scenario_for
 from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
@@ -174,7 +174,7 @@ def reproducible_settings(filter_name: str) -> dict[str, Any]:
     same seed then gives another episode. Sweeps that compare filters run it without the budget
     (``budget=inf``); the deadline has its own tests.
     """
-    return {"budget": math.inf} if filter_name.removesuffix(ESCAPE_SUFFIX) == "mpc" else {}
+    return {"budget": math.inf} if unescaped(filter_name) == "mpc" else {}
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:

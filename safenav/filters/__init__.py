@@ -58,6 +58,7 @@ __all__ = [
     "check_filter",
     "default_margin",
     "make_filter",
+    "unescaped",
 ]
 
 FILTERS: MappingProxyType[str, str | None] = MappingProxyType({
@@ -73,13 +74,18 @@ FILTER_NAMES = (*FILTERS, *(f"{name}{ESCAPE_SUFFIX}" for name, target in FILTERS
 """Names :func:`make_filter` accepts: every filter, and every filter with the deadlock escape."""
 
 
+def unescaped(name: str) -> str:
+    """The filter a name builds inside the escape: ``"mpc"`` for ``"mpc+escape"`` (and for ``"mpc"``)."""
+    return name.removesuffix(ESCAPE_SUFFIX)
+
+
 def filter_class(name: str) -> Callable[..., SafetyFilter] | None:
     """The class registered as ``name`` (``None`` for ``"none"``; the inner filter's for ``"<name>+escape"``).
 
     Raises:
         UnknownName: ``name`` is not a filter (the message lists them).
     """
-    target = FILTERS[_checks.choice("filter", name, FILTER_NAMES).removesuffix(ESCAPE_SUFFIX)]
+    target = FILTERS[unescaped(_checks.choice("filter", name, FILTER_NAMES))]
     if target is None:
         return None
     module, _, attribute = target.partition(":")
