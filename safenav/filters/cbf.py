@@ -302,6 +302,8 @@ class CBFSafetyFilter(SafetyFilter):
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
+        self._P_command = self._P[:2, :2].copy()
+        self._abs_rows = families.abs_rows()
         self._polygon = self.body.outline if self.body.name == "polygon" else None
         self._lookaheads = {float(cfg.lookahead): self._reach_of(float(cfg.lookahead)),
                             float(cfg.min_lookahead): self._reach_of(float(cfg.min_lookahead))}
@@ -355,6 +357,8 @@ class CBFSafetyFilter(SafetyFilter):
         if velocity is not None:
             turn = max(turn, abs(float(velocity[1])))
         kappa = 0.5 * turn * period
+        t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
+        t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
         points, uncertainty = view.points, view.uncertainty
@@ -404,7 +408,9 @@ class CBFSafetyFilter(SafetyFilter):
             sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
                                          self._allowance)
             obstacle = families.stack(barrier, braking, sweep)
-            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma)
+            box = (np.concatenate((lower, t_low)), np.concatenate((upper, t_high))) if cut else None
+            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
+                                             box=box)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)
@@ -412,8 +418,6 @@ class CBFSafetyFilter(SafetyFilter):
             rows = families.stack(obstacle, hard)
         else:
             rows = obstacle
-        t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
-        t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
         return _Problem(rows, points, per_point, uncertainty, min_barrier, np.concatenate((lower, t_low)),
                         np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
 
@@ -510,10 +514,10 @@ class CBFSafetyFilter(SafetyFilter):
         """The QP over ``rows``; with ``slack`` (a tier index) one slack relaxes the obstacle rows of
         tiers up to it (:data:`SLACK_TIERS`) and the other rows stay hard."""
         P = self._P
-        target = self._target(u_nom)
-        q = np.concatenate((-P[:2, :2] @ target, (0.0, 0.0)))
+        q = np.zeros(4)
+        q[:2] = -self._P_command @ self._target(u_nom)
         lower, upper = problem.lower, problem.upper
-        abs_rows = families.abs_rows()
+        abs_rows = self._abs_rows
         G = np.vstack((abs_rows.G, rows.G))
         h = np.concatenate((abs_rows.h, rows.h))
         if slack is not None:
@@ -547,8 +551,7 @@ class CBFSafetyFilter(SafetyFilter):
     @staticmethod
     def _prune(rows: families.Rows, problem: _Problem) -> np.ndarray:
         """Mask of the rows some command in the box could violate (the others never bind)."""
-        worst = np.maximum(rows.G * problem.lower, rows.G * problem.upper).sum(axis=1)
-        return worst > rows.h
+        return families.worst_case(rows.G, problem.lower, problem.upper) > rows.h
 
     def rows(self, scan: LaserScan | Any, velocity: Any = None, *, reduce: bool = True) -> families.Rows:
         """The rows of every family for ``scan``, with their points and families (see :meth:`build_qp`).

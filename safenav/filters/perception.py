@@ -410,11 +410,12 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> n
     offset = np.mod(np.arctan2(dy, dx) - mount.yaw - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
     index = np.floor(offset / increment + 0.5).astype(np.intp)
     inside = (index >= 0) & (index < scan.n_beams)
-    safe = np.clip(index, 0, scan.n_beams - 1)
-    reading = scan.readings[safe]
-    informative = (reading == Reading.HIT) | (reading == Reading.NO_RETURN)
-    value = np.where(reading == Reading.NO_RETURN, scan.range_max, scan.ranges[safe])
-    return inside & informative & (value >= np.hypot(dx, dy) - tolerance)
+    # per beam, the range up to which it shows space as seen: a hit's range, range_max for no return,
+    # -inf for a beam that says nothing (too close, invalid), so that no point passes the test below
+    readings = scan.readings
+    seen = np.where(readings == Reading.HIT, scan.ranges,
+                    np.where(readings == Reading.NO_RETURN, scan.range_max, -np.inf))
+    return inside & (seen.take(index, mode="clip") >= np.hypot(dx, dy) - tolerance)
 
 
 def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int) -> np.ndarray:

@@ -49,6 +49,7 @@ __all__ = [
     "stack",
     "stopping_speed",
     "sweep_rows",
+    "worst_case",
 ]
 
 FAMILIES = ("barrier", "braking", "sweep", "gap", "blind", "abs")
@@ -335,13 +336,6 @@ def polygon_geometry(points: np.ndarray, uncertainty: np.ndarray, polygon: np.nd
     return Geometry(keep, values, approach, arc), barrier
 
 
-def _approach_block(geo: Geometry, keep: np.ndarray) -> np.ndarray:
-    block = np.empty((int(np.count_nonzero(keep)) if keep.dtype == bool else keep.size, 4))
-    block[:, :2] = geo.approach[keep]
-    block[:, 2:] = geo.arc[keep]
-    return block
-
-
 def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, smallest: float | None = None) -> Rows:
     """The discrete-time barrier condition, one row per point-disk pair (soft).
 
@@ -377,8 +371,7 @@ def barrier_rows(geo: Geometry, gamma: float, far_gamma: float, dt: float, small
     # H < 0 the condition on H alone would let the body close on every shallower pair down to
     # (1 - gamma) H (a point 2 cm inside the margin approached by 17 cm because another is 26 cm in).
     rhs = np.where(barrier <= 0.0, np.minimum(rhs, gamma * barrier), rhs)
-    everything = np.ones(barrier.size, dtype=bool)
-    return _rows(_approach_block(geo, everything), rhs / dt, geo.point, "barrier")
+    return _rows(np.hstack((geo.approach, geo.arc)), rhs / dt, geo.point, "barrier")
 
 
 def stopping_speed(barrier: np.ndarray, accel: float, reaction: float) -> np.ndarray:
@@ -412,12 +405,26 @@ def braking_coefficient(coefficient: np.ndarray, barrier: np.ndarray, accel: flo
     """
     h = np.maximum(barrier, 0.0)
     magnitude = np.abs(coefficient)
-    a, T = reference, reaction
-    numerator = np.sqrt((magnitude * a * T) ** 2 + 2.0 * a * a * h * magnitude / accel) + magnitude * a * T
-    denominator = np.sqrt((a * T) ** 2 + 2.0 * a * h) + a * T
-    with np.errstate(invalid="ignore", divide="ignore"):
-        scaled = np.where(denominator > 0.0, numerator / np.where(denominator > 0.0, denominator, 1.0), magnitude)
-    return np.sign(coefficient) * scaled
+    aT = reference * reaction
+    numerator = np.sqrt(magnitude * (magnitude * (aT * aT) + (2.0 * reference * reference / accel) * h)) \
+        + magnitude * aT
+    denominator = np.sqrt(aT * aT + (2.0 * reference) * h) + aT
+    scaled = np.divide(numerator, denominator, out=magnitude.copy(), where=denominator > 0.0)
+    return np.copysign(scaled, coefficient)
+
+
+def _term_signs(k: np.ndarray, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
+    """Whether ``k x >= 0`` (``always``) and whether ``k x <= 0`` (``never``) for every ``x`` in ``[low, high]``."""
+    nonnegative, nonpositive = low >= 0.0, high <= 0.0
+    if nonnegative and nonpositive:     # x = 0 only
+        everywhere = np.ones(k.shape, dtype=bool)
+        return everywhere, everywhere
+    if nonnegative:
+        return k >= 0.0, k <= 0.0
+    if nonpositive:
+        return k <= 0.0, k >= 0.0
+    zero = k == 0.0                     # x takes both signs: only a zero term has one sign
+    return zero, zero
 
 
 def braking_rows(geo: Geometry, accel: float, alpha: float, reaction: float, allowance: float = 0.0,
@@ -455,34 +462,26 @@ def braking_rows(geo: Geometry, accel: float, alpha: float, reaction: float, all
     k_v = braking_coefficient(geo.approach[:, 0], barrier, accel, accel, reaction)
     k_omega = braking_coefficient(geo.approach[:, 1], barrier, alpha, accel, reaction)
     if box is None:
-        always_v = always_omega = never_v = never_omega = np.zeros(count, dtype=bool)
+        always_v, never_v = _term_signs(k_v, -math.inf, math.inf)
+        always_omega, never_omega = _term_signs(k_omega, -math.inf, math.inf)
     else:
+        # the sign of each term over the whole box: c x >= 0 (always approaching) or <= 0 (never);
+        # a term with a zero coefficient is both, and needs no row of its own
         lower, upper = box
-        # the sign of each term over the whole box: c x >= 0 (always approaching) or <= 0 (never)
-        always_v = np.minimum(k_v * lower[0], k_v * upper[0]) >= 0.0
-        never_v = np.maximum(k_v * lower[0], k_v * upper[0]) <= 0.0
-        always_omega = np.minimum(k_omega * lower[1], k_omega * upper[1]) >= 0.0
-        never_omega = np.maximum(k_omega * lower[1], k_omega * upper[1]) <= 0.0
-    # a term with a zero coefficient is both: it needs no row of its own
-    zero_v, zero_omega = k_v == 0.0, k_omega == 0.0
-    always_v, never_v = always_v | zero_v, never_v | zero_v
-    always_omega, never_omega = always_omega | zero_omega, never_omega | zero_omega
+        always_v, never_v = _term_signs(k_v, float(lower[0]), float(upper[0]))
+        always_omega, never_omega = _term_signs(k_omega, float(lower[1]), float(upper[1]))
     both = ~never_v & ~never_omega
     v_alone = ~always_omega & ~never_v
     omega_alone = ~always_v & ~never_omega
     # a pair that no command can make approach still gets its combined row (the arc terms)
     both |= ~(both | v_alone | omega_alone)
-    blocks = []
-    for mask, use_v, use_omega in ((both, True, True), (v_alone, True, False), (omega_alone, False, True)):
-        index = np.flatnonzero(mask)
-        G = np.zeros((index.size, 4))
-        if use_v:
-            G[:, 0] = k_v[index]
-        if use_omega:
-            G[:, 1] = k_omega[index]
-        G[:, 2:] = geo.arc[index]
-        blocks.append(_rows(G, limit[index], geo.point[index], "braking"))
-    return stack(*blocks)
+    # the three blocks in order (both terms, v alone, omega alone), built at once
+    kind, index = np.nonzero(np.stack((both, v_alone, omega_alone)))
+    G = np.empty((index.size, 4))
+    G[:, 0] = np.where(kind == 2, 0.0, k_v[index])
+    G[:, 1] = np.where(kind == 1, 0.0, k_omega[index])
+    G[:, 2:] = geo.arc[index]
+    return _rows(G, limit[index], geo.point[index], "braking")
 
 
 def braking_swing(velocity: np.ndarray, alpha: float, dt: float, reaction: float) -> float:
@@ -521,23 +520,30 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
     barrier = geo.barrier + allowance
     limit = stopping_speed(barrier, accel, reaction)
     forward = geo.approach[:, 0]                 # cos of the bearing from the control point
-    blocks = []
-    for sign, cosine in ((1.0, forward), (-1.0, -forward)):
-        # cos(max(acos(cosine) - sweep, 0)), without trigonometry per point
-        effective = np.where(cosine >= math.cos(min(sweep, math.pi)), 1.0,
-                             cosine * math.cos(sweep) + np.sqrt(np.maximum(1.0 - cosine * cosine, 0.0)) *
-                             math.sin(sweep))
-        inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(cosine.size)
-        G = np.zeros((inside.size, 4))
-        cosine_inside = effective[inside]
-        G[:, 0] = sign * np.where(cosine_inside >= 1.0, 1.0, braking_coefficient(
-            np.minimum(cosine_inside, 1.0), barrier[inside], accel, accel, reaction))
-        G[:, 2:] = geo.arc[inside]
-        blocks.append(_rows(G, limit[inside], geo.point[inside], "sweep"))
-    return stack(*blocks)
+    count = forward.size
+    # cos(max(acos(cosine) - sweep, 0)) of the heading (first block) and the reverse heading (second),
+    # without trigonometry per point
+    cosine = np.concatenate((forward, -forward))
+    sine = np.sqrt(np.maximum(1.0 - forward * forward, 0.0))
+    effective = np.where(cosine >= math.cos(min(sweep, math.pi)), 1.0,
+                         cosine * math.cos(sweep) + np.concatenate((sine, sine)) * math.sin(sweep))
+    inside = np.flatnonzero(effective > 1e-6) if sweep < math.pi else np.arange(2 * count)
+    pair = inside % count if count else inside
+    cosine_inside = effective[inside]
+    G = np.zeros((inside.size, 4))
+    G[:, 0] = np.where(inside < count, 1.0, -1.0) * np.where(cosine_inside >= 1.0, 1.0, braking_coefficient(
+        np.minimum(cosine_inside, 1.0), barrier[pair], accel, accel, reaction))
+    G[:, 2:] = geo.arc[pair]
+    return _rows(G, limit[pair], geo.point[pair], "sweep")
 
 
-def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0) -> Rows:
+def worst_case(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Largest left side of each row of ``G`` ``(k, 4)`` over the box ``lower <= z <= upper``."""
+    return np.maximum(G * lower, G * upper).sum(axis=1)
+
+
+def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0,
+                 box: tuple[np.ndarray, np.ndarray] | None = None) -> Rows:
     """The rows written for every mean velocity a base between ``velocity`` and the command can have.
 
     Over a period the base's velocity moves from ``velocity`` (``w0``) towards the command
@@ -546,17 +552,41 @@ def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: 
     its acceleration limit; ``(tau / dt)(1 - exp(-dt / tau))`` for a first-order lag of time
     constant ``tau``). Rows are linear in the mean, so holding at the four corners
     ``b in {0, lag}^2`` they hold for every such base. Without a velocity only ``B = 0``.
+    The corner ``B = 0`` (the command itself) keeps ``headroom`` of each right side's magnitude.
+
+    With ``box`` (the bounds ``(lower, upper)`` on ``z``), only the rows that can bind are written,
+    and each once (exact: the answer of a QP over them is that of the QP over all four corners
+    within the box): a row is left out when its largest left side over every mean velocity (each
+    component between the box and ``w0``) is within its right side at ``B = 0``, which is the
+    smallest; and a corner that only scales a zero term (a row without a ``v`` or an ``omega``
+    term, as the sweep rows and the one-term braking rows) repeats a corner with the same left side
+    and a right side no smaller, so it is left out.
     """
     if velocity is None or lag <= 0.0 or not len(rows):
         return rows
-    blocks = [rows if headroom <= 0.0 else Rows(rows.G, rows.h - headroom * np.abs(rows.h), rows.point, rows.family)]
-    for b_v, b_omega in ((lag, 0.0), (0.0, lag), (lag, lag)):
-        G = rows.G.copy()
-        G[:, 0] *= 1.0 - b_v
-        G[:, 1] *= 1.0 - b_omega
-        h = rows.h - (rows.G[:, 0] * b_v * velocity[0] + rows.G[:, 1] * b_omega * velocity[1])
-        blocks.append(Rows(G, h, rows.point, rows.family))
-    return stack(*blocks)
+    first = rows.h if headroom <= 0.0 else rows.h - headroom * np.abs(rows.h)
+    if box is not None:
+        lower, upper = box
+        hull_lower, hull_upper = lower.copy(), upper.copy()
+        hull_lower[:2] = np.minimum(lower[:2], velocity)
+        hull_upper[:2] = np.maximum(upper[:2], velocity)
+        bind = worst_case(rows.G, hull_lower, hull_upper) > first
+        if not bind.all():
+            rows, first = rows.take(bind), first[bind]
+    # the four corners at once: corner c scales the v and omega terms by (1 - b_v, 1 - b_omega) and moves
+    # their share of the start velocity to the right side
+    b = np.array([[0.0, 0.0], [lag, 0.0], [0.0, lag], [lag, lag]])
+    G = np.repeat(rows.G[None], 4, axis=0)
+    G[:, :, :2] *= (1.0 - b)[:, None, :]
+    h = (rows.h[None, :] - (b * velocity) @ rows.G[:, :2].T)
+    h[0] = first
+    point = np.broadcast_to(rows.point, h.shape)
+    family = np.broadcast_to(rows.family, h.shape)
+    if box is None:
+        return Rows(G.reshape(-1, 4), h.reshape(-1), point.reshape(-1), family.reshape(-1))
+    has_v, has_omega = rows.G[:, 0] != 0.0, rows.G[:, 1] != 0.0
+    distinct = np.stack((np.ones_like(has_v), has_v, has_omega, has_v & has_omega))
+    return Rows(G[distinct], h[distinct], point[distinct], family[distinct])
 
 
 def _cone(G: np.ndarray) -> np.ndarray:

@@ -133,6 +133,60 @@ def test_ramp_corners_cover_every_base_between_the_velocity_and_the_command(case
     assert np.all(base.G @ z_mean <= base.h + 1e-9)
 
 
+@settings(max_examples=400)
+@given(pairs(), st.floats(0.0, 0.2), st.booleans(), st.integers(0, 2**32 - 1))
+def test_ramp_corners_in_a_box_keep_the_worst_row_of_all_four_corners(case, time_constant, glitch, seed):
+    """Leaving out the rows that cannot bind and the repeated corners keeps, at every command in the box,
+    the largest violation of the rows of all four corners (hence the same feasible commands and QP answer).
+
+    The rows have every family's shapes (both terms, ``v`` alone, ``omega`` alone, as the braking
+    and sweep rows have), right sides that cut through the box or lie beyond its reach, and a
+    start velocity inside the box or (``glitch``) beyond it.
+    """
+    robot, body, lookahead, points, command = case
+    kappa = 0.5 * robot.omega_max * DT
+    geo = families.geometry(points, np.zeros(len(points)), body.centres, body.radii, lookahead, 0.03, kappa)[0]
+    rng = np.random.default_rng(seed)
+    base = families.barrier_rows(geo, 0.2, 1.0, DT)
+    G = np.vstack((base.G, base.G, base.G))
+    G[len(base): 2 * len(base), 1] = 0.0                # v alone
+    G[2 * len(base):, 0] = 0.0                          # omega alone
+    step = np.array([robot.a_max, robot.alpha_max]) * DT
+    centre = np.clip(command, robot.lower + step, robot.upper - step)
+    lower = np.concatenate((centre - step, rng.uniform(0.0, 0.3, 2)))
+    upper = np.concatenate((centre + step, lower[2:] + rng.uniform(0.0, 0.5, 2)))
+    velocity = rng.uniform(lower[:2], upper[:2])
+    if glitch:
+        velocity = velocity + np.sign(rng.uniform(-1.0, 1.0, 2)) * 3.0 * step
+    best = -families.worst_case(-G, lower, upper)
+    highest = families.worst_case(G, lower, upper)
+    h = highest - rng.uniform(-0.3, 1.0, G.shape[0]) * (highest - best)
+    point = np.concatenate((base.point, base.point, base.point))
+    lag = lag_fraction(DT, time_constant)
+    corners = np.array(np.meshgrid(*zip(lower, upper, strict=True))).T.reshape(-1, 4)
+    commands = np.vstack((corners, rng.uniform(lower, upper, (300, 4)))).T
+    left_out = 0
+    for index in range(G.shape[0]):    # row by row, so that no other row hides one left out wrongly
+        row = families.Rows(G[index: index + 1], h[index: index + 1], point[index: index + 1], np.zeros(1, np.intp))
+        every = families.ramp_corners(row, velocity, lag, 0.2)
+        kept = families.ramp_corners(row, velocity, lag, 0.2, box=(lower, upper))
+        left_out += len(every) - len(kept)
+        worst_every = np.maximum(np.max(every.G @ commands - every.h[:, None], axis=0), 0.0)
+        worst_kept = (np.maximum(np.max(kept.G @ commands - kept.h[:, None], axis=0), 0.0) if len(kept)
+                      else np.zeros(commands.shape[1]))
+        np.testing.assert_allclose(worst_kept, worst_every, rtol=0.0, atol=1e-12)
+    assert left_out > 0
+
+
+@pytest.mark.parametrize("low, high", [(0.0, 0.0), (0.0, 1.0), (0.2, 1.0), (-1.0, 0.0), (-1.0, -0.2), (-1.0, 1.0)])
+def test_term_signs_agree_with_the_products_at_the_ends_of_the_interval(low, high):
+    k = np.array([-2.0, -1e-300, -0.0, 0.0, 1e-300, 3.0])
+    always, never = families._term_signs(k, low, high)
+    ends = np.stack((k * low, k * high))
+    assert np.array_equal(always, (ends >= 0.0).all(axis=0) | (k == 0.0))
+    assert np.array_equal(never, (ends <= 0.0).all(axis=0) | (k == 0.0))
+
+
 @given(st.floats(0.0, 5.0), st.floats(0.1, 3.0), st.floats(0.01, 0.3))
 def test_stopping_speed_stops_within_the_barrier(barrier, accel, reaction):
     speed = families.stopping_speed(np.array([barrier]), accel, reaction)[0]
