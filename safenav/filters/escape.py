@@ -10,10 +10,13 @@ nominal by an escape command until the nominal's way is clear again:
    request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it let through)
    for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can swing the
    heading to and fro in front of a wall without ever reporting a stall).
-2. **Side, once per deadlock.** Towards the opening nearest the way the nominal was heading
+2. **Side, once per deadlock.** Round the blocking obstacle (the point behind the filter's binding
+   row, else the nearest point ahead) towards the opening nearest the way the nominal was heading
    (the chord of its arc over one second): the nearest (in bearing) place where two
    neighbouring scan points are farther apart than the body's corridor (``2 clear_half_width``),
-   that is, an edge of the blocking obstacle or a door beside it; without one, the side with
+   that is, an edge of the blocking obstacle or a door beside it. The side is the sense of the turn
+   from the obstacle's bearing to the opening's (facing a wall obliquely, a door up the wall may lie
+   right of the heading and still be reached by going left); without an opening, the side with
    more free space, or the side the nominal turns to.
 3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
    with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
@@ -212,7 +215,7 @@ class Escape:
             stalled = self._held >= self.inner.deadlock_time - 1e-9
             if (result.deadlock is None and not stalled) or not np.all(np.isfinite(nominal)):
                 return result
-            self._start(nominal, scans, points)
+            self._start(nominal, scans, points, None if result.reason is None else result.reason.point)
         command = self._command(points, known, scans)
         self.inner.passage = self._gap is not None    # through a gap the body fits with the filter's narrow settings
         result = self.inner.filter(command, scans, **kwargs)
@@ -240,14 +243,18 @@ class Escape:
 
     # ------------------------------------------------------------------ the escape
 
-    def _start(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], points: np.ndarray) -> None:
-        """Choose a side once for this deadlock (the other one after a timed-out escape)."""
+    def _start(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], points: np.ndarray,
+               blocking: tuple[float, float] | None) -> None:
+        """Choose a side once for this deadlock (the other one after a timed-out escape).
+
+        ``blocking`` is the obstacle point the filter's binding row came from (base frame [m]), if any.
+        """
         left = _free(points, 0.25 * math.pi, 0.75 * math.pi)
         right = _free(points, -0.75 * math.pi, -0.25 * math.pi)
         intent = _intent(nominal)
         opening = self._nearest_opening(scans, intent)
         if opening is not None:
-            side = 1 if opening > 0.0 else -1
+            side = _side_towards(opening, _blocking_bearing(points, blocking))
         elif abs(left - right) > 0.2:
             side = 1 if left > right else -1
         elif nominal[1] != 0.0:
@@ -414,6 +421,33 @@ def _free(points: np.ndarray, low: float, high: float, horizon: float = 3.0) -> 
     if not inside.any():
         return horizon
     return min(float(np.min(np.hypot(points[inside, 0], points[inside, 1]))), horizon)
+
+
+def _blocking_bearing(points: np.ndarray, blocking: tuple[float, float] | None) -> float:
+    """Bearing [rad] of the obstacle that blocks the robot: the filter's binding point, else the nearest
+    point ahead (within 90 degrees of the heading), else straight ahead."""
+    if blocking is not None:
+        return math.atan2(blocking[1], blocking[0])
+    ahead = points[points[:, 0] > 0.0] if points.shape[0] else points
+    if ahead.shape[0] == 0:
+        return 0.0
+    nearest = ahead[int(np.argmin(np.hypot(ahead[:, 0], ahead[:, 1])))]
+    return math.atan2(nearest[1], nearest[0])
+
+
+def _side_towards(opening: float, blocking: float) -> int:
+    """The side (+1 left, -1 right) to go round an obstacle at bearing ``blocking`` [rad] towards an opening
+    at bearing ``opening`` [rad].
+
+    Facing the obstacle and turning left, the robot moves along it counter-clockwise (as seen from
+    the robot): the side is the sense of the turn from the obstacle's bearing to the opening's; an
+    opening straight behind the obstacle (less than a degree apart) is reached on its own side of the
+    heading.
+    """
+    turn = math.sin(opening - blocking)
+    if abs(turn) < math.sin(math.radians(1.0)):
+        return 1 if opening > 0.0 else -1
+    return 1 if turn > 0.0 else -1
 
 
 def _intent(nominal: np.ndarray) -> float:

@@ -198,3 +198,51 @@ def test_a_corridor_is_clear_when_the_body_fits_with_the_filters_margin_and_look
     assert escape.clear_half_width == pytest.approx(expected(robot, escape.inner), abs=1e-12)
     assert escape.clear_half_width == escape.inner.corridor_half_width
     assert escape.clear_half_width < 0.5 * door_width(robot) or escape.inner.lookahead > 0.025
+
+
+def _rotated(segments: tuple[tuple[float, float, float, float], ...], angle: float
+             ) -> tuple[tuple[float, float, float, float], ...]:
+    c, s = math.cos(angle), math.sin(angle)
+    return tuple((c * x0 - s * y0, s * x0 + c * y0, c * x1 - s * y1, s * x1 + c * y1) for x0, y0, x1, y1 in segments)
+
+
+OBLIQUE_HEADING = 1.0   # [rad] the robot's heading off the wall's normal, towards the door
+
+
+def oblique_door(robot: str, filter_name: str) -> Episode:
+    """Door scenario seed 2, reduced: the wall 0.35 m ahead along its normal, the door (of the door scenarios'
+    width) 0.42 m to the left along the wall, the robot heading 1 rad off the normal towards it, the goal
+    beyond the wall to the right of the door. From there the door lies slightly right of the heading but up
+    the wall: it is reached by going round the blocking wall to the left."""
+    half, centre = 0.5 * door_width(preset(robot)), 0.42
+    room = ((-1.5, 2.5, 4.0, 2.5), (-1.5, -2.5, 4.0, -2.5), (-1.5, -2.5, -1.5, 2.5), (4.0, -2.5, 4.0, 2.5))
+    divider = ((0.35 + preset(robot).radius, -2.5, 0.35 + preset(robot).radius, centre - half),
+               (0.35 + preset(robot).radius, centre + half, 0.35 + preset(robot).radius, 2.5))
+    goal = np.array([2.5, 0.45])
+    c, s = math.cos(-OBLIQUE_HEADING), math.sin(-OBLIQUE_HEADING)
+    return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05,
+                   segments=_rotated(divider + room, -OBLIQUE_HEADING), nominal="goal",
+                   params=(c * goal[0] - s * goal[1], s * goal[0] + c * goal[1]), duration=40.0, escape=True,
+                   settings={"budget": math.inf} if filter_name == "mpc" else {})
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_goes_round_the_blocking_wall_towards_a_door_that_lies_right_of_the_heading_but_up_the_wall(
+        filter_name):
+    """The side is the way round the obstacle that blocks (the filter's binding point) towards the opening, not
+    the side of the heading the opening lies on: before, it chose the right, followed the wall away from the
+    door, and never saw the door square enough to take it (door scenario, Puzzlebot seeds 2, 7 and 11)."""
+    robot = "puzzlebot"
+    outcome, log = run(oblique_door(robot, filter_name), record=True)
+    assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
+    first = next(row["escape"] for row in log if row["escape"])
+    assert "turning left" in first, first
+    wall_x, half = 0.35 + preset(robot).radius, 0.5 * door_width(preset(robot))
+    c, s = math.cos(OBLIQUE_HEADING), math.sin(OBLIQUE_HEADING)
+    world = [(c * x - s * y, s * x + c * y) for x, y, _ in (row["pose"] for row in log)]
+    crossing = next(((x0, y0, x1, y1) for (x0, y0), (x1, y1) in itertools.pairwise(world) if x0 < wall_x <= x1),
+                    None)
+    assert crossing is not None, "never crossed the wall"
+    x0, y0, x1, y1 = crossing
+    assert abs(y0 + (y1 - y0) * (wall_x - x0) / (x1 - x0) - 0.42) < half
+    assert outcome.goal_distance < 0.3
