@@ -7,6 +7,7 @@ NLP, the SQP, the plan layout and the configuration are the package's other modu
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -49,6 +50,17 @@ REPAIR_TOLERANCE = 1e-9
 #: After the last swap of missed points, an answer that misses its own rows by at most this much
 #: is accepted, with its true slack reported [m]; a larger miss counts as a failed solve.
 SETTLE_TOLERANCE = 1e-3
+
+
+class _Ramps(NamedTuple):
+    """The command changes the acceleration limits allow when commands are held ``hold`` periods."""
+
+    reach: np.ndarray
+    """``(P, 2)`` from the start velocity to the end of each period's block [m/s, rad/s]."""
+    braking: np.ndarray
+    """``(P, 2)`` from the first command to each period's, braking in blocks [m/s, rad/s]."""
+    steps: np.ndarray
+    """``(P - 1, 2)`` between consecutive periods (zero within a block) [m/s, rad/s]."""
 
 
 class _Solved(NamedTuple):
@@ -233,6 +245,9 @@ class MPCSafetyFilter(SafetyFilter):
         periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))
         self.layout = PlanLayout.of(periods, cfg.max_commands)
         self._layouts: dict[int, PlanLayout] = {1: self.layout}
+        self._ramps: dict[int, _Ramps] = {}
+        # The reach's speed profile: accelerating from the start, braking to the end [m/s].
+        self._speed_ramps = (np.arange(1, periods + 1) * self._step[0], np.arange(periods - 1, -1, -1) * self._step[0])
         self.offsets = np.array(self.body.centres, dtype=float)
         self._inflations: dict[int, tuple[np.ndarray, np.ndarray, float, float]] = {}
         self.inflated_radii, self.actuator_errors, self.buffer, self.soft_buffer = self._inflation(1)
@@ -289,6 +304,20 @@ class MPCSafetyFilter(SafetyFilter):
         self._inflations[hold] = (radii, actuator, buffer, soft)
         return radii, actuator, buffer, soft
 
+    def _ramps_for(self, layout: PlanLayout) -> _Ramps:
+        """The :class:`_Ramps` of a layout's call period (cached per filter)."""
+        hold = layout.hold
+        ramps = self._ramps.get(hold)
+        if ramps is None or self._layout_for(hold) is not layout:
+            blocks = np.arange(self.horizon) // hold
+            ramps = _Ramps((blocks + 1)[:, None] * hold * self._step, blocks[:, None] * hold * self._step,
+                           layout.period_changes[:, None] * self._step)
+            for array in ramps:
+                array.flags.writeable = False
+            if self._layout_for(hold) is layout:
+                self._ramps[hold] = ramps
+        return ramps
+
     def _layout_for(self, hold: int) -> PlanLayout:
         """The layout of a plan whose commands are held ``hold`` periods (cached per filter)."""
         layout = self._layouts.get(hold)
@@ -302,8 +331,10 @@ class MPCSafetyFilter(SafetyFilter):
             offsets = tuple((float(x), float(y)) for x, y in self.offsets)
             return CasadiNLP(NLPKey(self.layout.periods, self.layout.max_commands, 1, self.n_points, offsets,
                                     self.dt, cfg.time_constant, self.cost, cfg.solver, cfg.hessian, cfg.max_iter))
-        return DirectSQP(PlanModel(self.layout.periods, self.model), self.offsets, self.cost,
-                         make_backend(cfg.solver), cfg.max_iter)
+        solver = DirectSQP(PlanModel(self.layout.periods, self.model), self.offsets, self.cost,
+                           make_backend(cfg.solver), cfg.max_iter)
+        solver.prepare(self.layout)     # its model is built now, not in the first call that solves
+        return solver
 
     @property
     def horizon(self) -> int:
@@ -371,11 +402,10 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _reach(self, velocity: np.ndarray) -> float:
         """Upper bound on the path length of any plan from ``velocity`` [m] (and the lag's drift)."""
-        k = np.arange(self.horizon)
-        step = self._step[0]
+        rising, falling = self._speed_ramps     # (k + 1) a_max dt and (P - 1 - k) a_max dt
         start = max(abs(float(velocity[0])), abs(float(self._last_command[0])))
-        speeds = np.minimum(np.minimum(self.speed, start + (k + 1) * step), (self.horizon - 1 - k) * step)
-        speeds = np.maximum(speeds, np.maximum(start - (k + 1) * step, 0.0))
+        speeds = np.minimum(np.minimum(self.speed, start + rising), falling)
+        speeds = np.maximum(speeds, np.maximum(start - rising, 0.0))
         previous = np.concatenate(([start], speeds[:-1]))
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
@@ -389,8 +419,7 @@ class MPCSafetyFilter(SafetyFilter):
         robot = self.robot
         # A lagging base is commanded a sequence that slews at the acceleration limits; its velocity follows.
         origin = velocity if self.model.time_constant <= 0.0 else self._last_command
-        blocks = np.arange(self.horizon) // hold + 1
-        change = blocks[:, None] * hold * self._step
+        change = self._ramps_for(self._layout_for(hold)).reach
         reach_low, reach_high = origin - change, origin + change
         # Later steps: the limits, widened only to let a base outside them brake at its limit.
         lower = np.minimum(robot.lower, reach_high)
@@ -426,17 +455,19 @@ class MPCSafetyFilter(SafetyFilter):
             now = np.hypot(points[:, None, 0] - offsets[None, :, 0], points[:, None, 1] - offsets[None, :, 1])
             min_barrier = float(np.min(now - uncertainty[:, None] - (body.radii + self.margin)[None, :]))
             reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
-            keep = np.hypot(points[:, 0], points[:, 1]) <= reach + buffer + uncertainty
-            points, uncertainty, now = points[keep], uncertainty[keep], now[keep]
+            ranges = np.hypot(points[:, 0], points[:, 1])
+            keep = ranges <= reach + buffer + uncertainty
+            points, uncertainty, now, ranges = points[keep], uncertainty[keep], now[keep], ranges[keep]
         else:
             now = np.empty((0, offsets.shape[0]))
+            ranges = np.empty(0)
             min_barrier = math.inf
         guaranteed = inflated[None, :] + uncertainty[:, None]
         # The planner also keeps the growth of a point's uncertainty at the next carry by the measured
         # velocity (A5's trapezoid: half the period times the velocity change, at most the acceleration
         # limits), so that the shifted plan stays feasible once a point has left the field of view.
         held = hold * self.dt
-        drift = 0.5 * held * held * (self.robot.a_max + np.hypot(points[:, 0], points[:, 1]) * self.robot.alpha_max)
+        drift = 0.5 * held * held * (self.robot.a_max + ranges * self.robot.alpha_max)
         floor = guaranteed + (buffer - soft) + drift[:, None]
         lower, upper = self._bounds(velocity, view.frontier, hold)
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, np.minimum(floor + soft, now),
@@ -457,9 +488,9 @@ class MPCSafetyFilter(SafetyFilter):
     def check_plan(self, problem: MPCProblem, commands: np.ndarray) -> PlanCheck:
         """How far ``commands`` ``(P, 2)`` are from satisfying every constraint of ``problem``."""
         commands = np.asarray(commands, dtype=float).reshape(self.horizon, 2)
-        limits = max(float(np.max(problem.lower - commands)), float(np.max(commands - problem.upper)))
-        steps = problem.layout.period_changes[:, None] * self._step
-        limits = max(limits, float(np.max(np.abs(np.diff(commands, axis=0)) - steps)))
+        limits = float(np.max(np.maximum(problem.lower - commands, commands - problem.upper)))
+        steps = self._ramps_for(problem.layout).steps
+        limits = max(limits, float(np.max(np.abs(commands[1:] - commands[:-1]) - steps)))
         knots, poses, velocities = self.model.knot_poses(commands, problem.velocity)
         gaps = distances(disk_centres(knots, self.offsets), problem.points)
         if gaps.size == 0:
@@ -492,12 +523,16 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _braking(self, first: np.ndarray, hold: int = 1) -> np.ndarray:
         """``first``, then every block of ``hold`` commands nearer zero by the acceleration limit: ``(P, 2)``."""
-        steps = (np.arange(self.horizon) // hold)[:, None] * hold * self._step
+        steps = self._ramps_for(self._layout_for(hold)).braking
         return np.sign(first) * np.maximum(np.abs(first) - steps, 0.0)
 
     @staticmethod
     def _plan_array(poses: np.ndarray, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        return np.column_stack((poses, np.vstack((velocity.reshape(1, 2), commands))))
+        plan = np.empty((poses.shape[0], 5))
+        plan[:, :3] = poses
+        plan[0, 3:] = velocity
+        plan[1:, 3:] = commands
+        return plan
 
     # ------------------------------------------------------------------ filtering
 
@@ -552,7 +587,7 @@ class MPCSafetyFilter(SafetyFilter):
                                 solve_time=0.0, solver="")
         warm = np.clip(candidate if shifted is None else self._realigned(shifted, previous), problem.lower,
                        problem.upper)
-        outcome = self._solve(problem, warm, candidate, deadline)
+        outcome = self._solve(problem, warm, candidate, deadline, check)
         if outcome.abandoned:
             spent = self.clock() - (deadline - self.budget)
             return self._fallback(problem, shifted, "deadline",
@@ -661,22 +696,26 @@ class MPCSafetyFilter(SafetyFilter):
             return Reason("acceleration", f"not reachable within one period from {problem.velocity.tolist()}")
         return Reason("plan", "a plan that ends stopped keeps the clearance only with this first command", point)
 
-    def _select(self, problem: MPCProblem, references: list[np.ndarray]) -> np.ndarray:
+    def _select(self, problem: MPCProblem, references: list[np.ndarray],
+                known: Sequence[np.ndarray] = ()) -> np.ndarray:
         """Indices of at most ``K`` points: nearest per angular bin by clearance to the reference plans.
 
         The bins halve until the slots are full, so the slots spread over every direction
         (a wall's points one slot every few degrees, not its nearest stretch twice over).
+        ``known`` are :attr:`PlanCheck.distances` of further reference plans, already computed.
         """
         count = problem.points.shape[0]
         if count <= self.n_points:
             return np.arange(count)
-        centres = np.concatenate([self.knot_centres(commands, problem.velocity) for commands in references])
-        keys = np.min(distances(centres, problem.points) - problem.radii, axis=1)
+        gaps = [distances(self.knot_centres(commands, problem.velocity), problem.points) for commands in references]
+        keys = np.min(functools.reduce(np.minimum, [*gaps, *known]) - problem.radii, axis=1)
         chosen = nearest_per_bin(problem.points, keys, (0.0, 0.0), self.n_points)
         bins = self.n_points
+        free = np.ones(count, dtype=bool)
         while chosen.size < self.n_points and bins < 64 * self.n_points:
             bins *= 2
-            rest = np.setdiff1d(np.arange(count), chosen, assume_unique=True)
+            free[chosen] = False
+            rest = np.flatnonzero(free)
             more = rest[nearest_per_bin(problem.points[rest], keys[rest], (0.0, 0.0), bins)]
             chosen = np.concatenate((chosen, more[: self.n_points - chosen.size]))
         return chosen
@@ -695,14 +734,19 @@ class MPCSafetyFilter(SafetyFilter):
             return np.zeros_like(problem.radii)
         return np.clip((problem.radii - problem.floor) / soft, 0.0, 1.0)
 
-    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float) -> _Solved:
+    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float,
+               candidate_check: PlanCheck | None = None) -> _Solved:
         """Solve the NLP; swap points the answer violates into the slots and solve again.
 
         An answer is accepted when, for every point in reach, each knot keeps either the
         guaranteed radius or the distance the solver's own slacks allow in its row.
+        ``candidate_check`` is the fast path's check of ``candidate``, when already made.
         """
         n_points = self.n_points
-        used = self._select(problem, [warm, candidate])
+        if candidate_check is None:
+            used = self._select(problem, [warm, candidate])
+        else:
+            used = self._select(problem, [warm], [candidate_check.distances])
         commands = warm
         solve_time = 0.0
         relief = self._relief(problem)
@@ -750,7 +794,7 @@ class MPCSafetyFilter(SafetyFilter):
         """``commands`` moved into their bounds, acceleration rows and hold (an SQP stopped at its
         iteration limit can miss a linear row by ~1e-6); the result is verified like any answer."""
         repaired = np.clip(commands, problem.lower, problem.upper)
-        steps = problem.layout.period_changes[:, None] * self._step
+        steps = self._ramps_for(problem.layout).steps
         if np.all(np.abs(np.diff(repaired, axis=0)) <= steps + REPAIR_TOLERANCE):
             return repaired     # within the QP solver's accuracy: the check's tolerance is far larger
         for k in range(1, self.horizon):

@@ -6,10 +6,12 @@ problem shape:
 
 * :class:`PlanModel`: a casadi ``Function`` from a plan's commands and the start velocity to
   the pose ``(x, y, yaw)`` at the end of every period (and where a lagging base drifts to
-  after the plan) and its Jacobian with respect to the commands. Evaluated through casadi's
-  buffer interface into arrays this object owns (no conversions per call). The direct SQP
-  (:class:`~safenav.filters.mpc.sqp.DirectSQP`) calls it once per iteration and maps the
-  Jacobian to the knots' commands (``u = B U``) itself, so one Function serves every layout.
+  after the plan) and its Jacobian with respect to the commands chosen: every period's, or a
+  layout's knots' (``u = B U``, differentiated through ``B`` by casadi). Evaluated through
+  casadi's buffer interface into arrays this object owns (no conversions per call). The direct
+  SQP (:class:`~safenav.filters.mpc.sqp.DirectSQP`) calls it once per iteration: the model of
+  its every-period layout's knots, built with the filter, and the every-period model for the
+  blocks of late calls (summed per block), so a late call builds nothing.
 * :class:`CasadiNLP`: the whole NLP handed to casadi's ``sqpmethod`` (with any of its QP
   plugins) or Ipopt: the reference the direct SQP is checked against
   (``tests/filters/test_mpc_replay.py``), selectable with ``solver="sqpmethod"``.
@@ -24,6 +26,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import casadi
 import numpy as np
 
+from safenav.errors import InvalidConfig
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, BaseModel, PlanLayout
 
 if TYPE_CHECKING:
@@ -67,14 +70,18 @@ def _knot_poses(model: BaseModel, commands: casadi.SX, velocity: casadi.SX) -> c
 
 
 @functools.lru_cache(maxsize=32)
-def _model_function(periods: int, dt: float, time_constant: float) -> casadi.Function:
+def _model_function(periods: int, max_commands: int, hold: int, dt: float, time_constant: float) -> casadi.Function:
+    layout = PlanLayout.of(periods, max_commands, hold)
     model = BaseModel(dt, time_constant)
-    commands = casadi.SX.sym("u", 2, periods)
+    knots = casadi.SX.sym("U", 2, layout.n_knots)
+    commands = knots if layout.identity else casadi.mtimes(knots, casadi.DM(layout.interpolation.T))
     velocity = casadi.SX.sym("velocity", 2)
     flat = casadi.vec(_knot_poses(model, commands, velocity))
-    jacobian = casadi.jacobian(flat, casadi.vec(commands))
-    return casadi.Function("plan_model", [casadi.vec(commands), velocity],
-                           [casadi.densify(flat), casadi.densify(jacobian)], ["u", "velocity"], ["poses", "jacobian"])
+    jacobian = casadi.jacobian(flat, casadi.vec(knots))
+    # The Jacobian's transpose, stored column-major: the Jacobian row-major (no transposition per call).
+    return casadi.Function("plan_model", [casadi.vec(knots), velocity],
+                           [casadi.densify(flat), casadi.densify(jacobian.T)], ["U", "velocity"],
+                           ["poses", "jacobian_transposed"])
 
 
 class PlanModel:
@@ -83,15 +90,22 @@ class PlanModel:
     Args:
         periods: commands of a plan.
         model: how the base follows the commands.
+        layout: whose knots' commands are the variables (``u = B U``, the derivatives taken through
+            ``B``); ``None``: every period's command.
     """
 
-    def __init__(self, periods: int, model: BaseModel) -> None:
+    def __init__(self, periods: int, model: BaseModel, layout: PlanLayout | None = None) -> None:
         self.periods = int(periods)
         self.model = model
+        self.layout = layout if layout is not None else PlanLayout.of(self.periods, self.periods)
+        if self.layout.periods != self.periods:
+            raise InvalidConfig(f"PlanModel: a layout of {self.layout.periods} periods for a plan of {self.periods} "
+                                "periods; expected the same number")
         self.n_poses = self.periods + (1 if model.time_constant > 0.0 else 0)
-        function = _model_function(self.periods, model.dt, model.time_constant)
+        function = _model_function(self.periods, self.layout.max_commands, self.layout.hold, model.dt,
+                                   model.time_constant)
         self._buffer, self._evaluate = function.buffer()
-        n_vars = 2 * self.periods
+        n_vars = 2 * self.layout.n_knots
         self._commands = np.zeros(n_vars)
         self._velocity = np.zeros(2)
         self._poses = np.zeros(3 * self.n_poses)
@@ -102,24 +116,25 @@ class PlanModel:
             self._buffer.set_res(index, memoryview(array))
 
     def __call__(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Poses ``(K, 3)`` at the clearance knots and their Jacobian ``(K, 3, 2P)`` with respect to
-        the commands ``(P, 2)`` (flattened period by period: ``v_0, omega_0, v_1, ...``)."""
-        self._commands[:] = np.asarray(commands, dtype=float).ravel()
+        """Poses ``(K, 3)`` at the clearance knots and their Jacobian ``(K, 3, 2n)`` with respect to
+        the knots' commands ``(n, 2)`` (flattened knot by knot: ``v_0, omega_0, v_1, ...``)."""
+        poses, jacobian = self.evaluate(commands, velocity)
+        return poses.copy(), jacobian.copy()
+
+    def evaluate(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """As calling the model, without copies: views of buffers that the next evaluation overwrites."""
+        self._commands[:] = np.ravel(commands)
         self._velocity[:] = velocity
         self._evaluate()
-        n_vars = self._commands.size
-        poses = self._poses.reshape(self.n_poses, 3).copy()
-        # casadi stores the Jacobian column-major: (3K rows, 2P columns).
-        jacobian = self._jacobian.reshape(n_vars, self.n_poses, 3).transpose(1, 2, 0).copy()
-        return poses, jacobian
+        return self._poses.reshape(self.n_poses, 3), self._jacobian.reshape(self.n_poses, 3, self._commands.size)
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"periods": self.periods, "model": self.model}
+        layout = self.layout
+        return {"periods": self.periods, "model": self.model,
+                "layout": (layout.periods, layout.max_commands, layout.hold)}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["periods"], state["model"])  # type: ignore[misc]
-
-
+        self.__init__(state["periods"], state["model"], PlanLayout.of(*state["layout"]))  # type: ignore[misc]
 class NLPKey(NamedTuple):
     """The shape of one reference NLP and its solver settings (built once per key and shared)."""
 

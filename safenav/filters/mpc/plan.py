@@ -207,6 +207,8 @@ class BaseModel(NamedTuple):
 
 def disk_centres(poses: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Where disks centred at ``offsets`` ``(D, 2)`` (base frame) are at ``poses`` ``(K, 3)``: ``(K, D, 2)``."""
+    if not np.any(offsets):
+        return np.repeat(poses[:, None, :2], offsets.shape[0], axis=1)
     cos, sin = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
     x = poses[:, 0:1] + cos * offsets[None, :, 0] - sin * offsets[None, :, 1]
     y = poses[:, 1:2] + sin * offsets[None, :, 0] + cos * offsets[None, :, 1]
@@ -275,9 +277,12 @@ def distances(centres: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Per point and disk, the smallest distance from the disk's centres ``(K, D, 2)`` to the point: ``(M, D)`` [m]."""
     if points.shape[0] == 0:
         return np.empty((0, centres.shape[1]))
-    dx = centres[:, :, 0, None] - points[None, None, :, 0]
-    dy = centres[:, :, 1, None] - points[None, None, :, 1]
-    return np.sqrt(np.min(dx * dx + dy * dy, axis=0)).T
+    squared = centres[:, :, 0, None] - np.ascontiguousarray(points[:, 0])     # (K, D, M), in place from here
+    squared *= squared
+    dy = centres[:, :, 1, None] - np.ascontiguousarray(points[:, 1])
+    dy *= dy
+    squared += dy
+    return np.sqrt(squared.min(axis=0)).T
 
 
 def row_values(distance: np.ndarray, radii: np.ndarray) -> np.ndarray:

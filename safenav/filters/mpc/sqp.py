@@ -22,20 +22,27 @@ point has (0 for a point already nearer than the guaranteed radius, which may no
 approached at all); ``s_h`` (heavy) relaxes the guaranteed radius itself.
 
 **The solvers.** :class:`DirectSQP` (default): casadi gives the knot poses and their exact
-Jacobian (:class:`~safenav.filters.mpc.nlp.PlanModel`, one Function built once), each SQP
+Jacobian with respect to the knots' commands (:class:`~safenav.filters.mpc.nlp.PlanModel`,
+one Function per layout, built with the filter, evaluated into buffers it owns), each SQP
 step's QP (the cost's own constant Hessian, the clearance rows linearised) is assembled in
-numpy and solved by a :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by
-default, the CBF's back-end interface), with full steps from the warm start, until the step
-is below :data:`STEP_TOLERANCE`. Only the clearance rows that can bind are passed to the QP;
-any other row its answer violates is added and the QP solved again, so each step is the
-step of the QP with every row. The deadline is checked before every QP: a solve overruns it by
-at most one QP.
+numpy without loops over points (every row as a (point, knot and disk) array entry) and
+solved by a :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by default, the
+CBF's back-end interface), with full steps from the warm start, until the step is below
+:data:`STEP_TOLERANCE`. Where the steps contract slowly along one direction (the Hessian
+leaves the rows' curvature out) they are extrapolated to the end of their geometric series
+(:data:`EXTRAPOLATION_WINDOW`); the fixed point, and the test of convergence on a QP's own
+step, are unchanged. Only the clearance rows that can bind are passed to the QP; any other
+row its answer violates is added and the QP solved again, so each step is the step of the QP
+with every row. The products of a step are einsum contractions, not BLAS calls (a product
+large enough for BLAS to thread can stall for milliseconds on a busy machine). The deadline is
+checked before every QP: a solve overruns it by at most one QP.
 :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
 (the reference) or Ipopt.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -47,7 +54,8 @@ from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
 from safenav.filters.qp import QPBackend, QPData
 
-__all__ = ["STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver", "knot_changes"]
+__all__ = ["EXTRAPOLATION_WINDOW", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver",
+           "knot_changes"]
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
 STEP_TOLERANCE = 1e-5
@@ -63,6 +71,13 @@ ROW_TOLERANCE = 1e-9
 ACTIVE_TOLERANCE = 1e-6
 #: Rounds of row generation within one SQP step before every checked row goes to the QP.
 MAX_ROW_ROUNDS = 6
+#: Steps smaller than this [m/s, rad/s] that shrink by a ratio within EXTRAPOLATION_RATIOS along
+#: nearly one direction (cosine above EXTRAPOLATION_COSINE) are extrapolated to the end of their
+#: geometric series (the SQP converges linearly where the clearance rows' curvature, which its
+#: Hessian leaves out, matters): the slow tail of a solve in one jump, its fixed point unchanged.
+EXTRAPOLATION_WINDOW = 1e-3
+EXTRAPOLATION_RATIOS = (0.1, 0.95)
+EXTRAPOLATION_COSINE = 0.99
 
 
 @dataclass(frozen=True)
@@ -155,14 +170,18 @@ class _LayoutData(NamedTuple):
     hessian: np.ndarray
     column_weights: np.ndarray
     differences: np.ndarray
-    expansion: np.ndarray | None
+    model: PlanModel
+    """The model whose variables are the knots' commands, or every period's for a late call's blocks."""
+    blocks: bool
+    """Whether ``model`` is the every-period one and the derivatives are summed per block (``hold >= 2``)."""
 
 
 class DirectSQP:
     """Sequential quadratic programming over a :class:`~safenav.filters.qp.QPBackend` (see the module docstring).
 
     Args:
-        model: the plan model (knot poses and their Jacobian with respect to every period's command).
+        model: the plan model of every period's command (knot poses and their Jacobian); each
+            layout with move blocking gets its own (:meth:`prepare`).
         offsets: ``(D, 2)`` the body disks' centres in the base frame [m].
         cost: the cost.
         backend: the QP solver of each step.
@@ -180,8 +199,9 @@ class DirectSQP:
         self._centred = not np.any(self.offsets)
         self._layouts: dict[tuple[int, int, int], _LayoutData] = {}
 
-    def _prepare(self, layout: PlanLayout) -> _LayoutData:
-        """The cost's Hessian, the knot differences and ``B`` (per axis) of a layout, computed once."""
+    def prepare(self, layout: PlanLayout) -> _LayoutData:
+        """The cost's Hessian, the knot differences and the model of a layout, computed once (the
+        filter prepares its every-period layout when it is built)."""
         key = (layout.periods, layout.max_commands, layout.hold)
         data = self._layouts.get(key)
         if data is not None:
@@ -200,8 +220,12 @@ class DirectSQP:
             for axis in range(2):
                 differences[2 * j + axis, 2 * (j + 1) + axis] = 1.0
                 differences[2 * j + axis, 2 * j + axis] = -1.0
-        expansion = None if layout.identity else np.kron(interpolation, np.eye(2))
-        data = _LayoutData(hessian, interpolation.T @ weights, differences, expansion)
+        # The every-period layout's knots get a model of their own (built with the filter, it saves a
+        # product by B per iteration); a late call's blocks sum the every-period model's derivatives,
+        # so that a late call builds nothing.
+        blocks = not layout.identity and layout.hold > 1
+        model = self.model if layout.identity or blocks else PlanModel(layout.periods, self.model.model, layout)
+        data = _LayoutData(hessian, interpolation.T @ weights, differences, model, blocks)
         self._layouts[key] = data   # a handful per filter: one per call period seen
         return data
 
@@ -228,23 +252,26 @@ class DirectSQP:
         return np.vstack(pieces), np.concatenate(lows), np.concatenate(highs)
 
     def _centres(self, poses: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Disk centres ``(K, D, 2)`` at the knots and their Jacobian ``(K, D, 2, m)``."""
+        """Disk centres ``(2, K D)`` at the knots (knot-major: disk ``d`` of knot ``k`` is column
+        ``k D + d``) and their Jacobian ``(2, K D, m)``, from the poses ``(K, 3)`` and their Jacobian
+        ``(K, 3, m)``."""
         if self._centred:
-            return poses[:, None, :2], jacobian[:, None, :2, :]
+            return poses[:, :2].T, jacobian[:, :2].transpose(1, 0, 2)
         cos, sin = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
         ox, oy = self.offsets[None, :, 0], self.offsets[None, :, 1]
-        rotated = np.stack((cos * ox - sin * oy, sin * ox + cos * oy), axis=-1)         # (K, D, 2)
-        centres = poses[:, None, :2] + rotated
+        rotated_x, rotated_y = cos * ox - sin * oy, sin * ox + cos * oy                  # (K, D)
+        centres = np.stack((poses[:, None, 0] + rotated_x, poses[:, None, 1] + rotated_y)).reshape(2, -1)
         # d(R(yaw) o)/d yaw = perp(R(yaw) o) = (-y, x).
-        turning = np.stack((-rotated[..., 1], rotated[..., 0]), axis=-1)
-        centre_jacobian = jacobian[:, None, :2, :] + turning[..., None] * jacobian[:, None, None, 2, :]
-        return centres, centre_jacobian
+        turning = jacobian[:, None, 2, :]
+        centre_jacobian = np.stack((jacobian[:, None, 0, :] - rotated_y[..., None] * turning,
+                                    jacobian[:, None, 1, :] + rotated_x[..., None] * turning))
+        return centres, centre_jacobian.reshape(2, centres.shape[1], -1)
 
     def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
               clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
         start_time = clock()
         layout = nlp.layout
-        data = self._prepare(layout)
+        data = self.prepare(layout)
         n = layout.n_knots
         n_vars = 2 * n + 2
         knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
@@ -252,59 +279,79 @@ class DirectSQP:
         upper_bounds = np.concatenate((knots_upper.ravel(), (nlp.buffer, np.inf)))
         knots = np.clip(np.asarray(nlp.start, dtype=float).ravel(), lower_bounds[:-2], upper_bounds[:-2])
         linear, linear_low, linear_high = self._linear_rows(nlp, data)
+        n_linear = linear.shape[0]
         gradient = np.zeros(n_vars)
         target = np.asarray(nlp.target, dtype=float)
         for axis, weight in enumerate(self.cost.weights):
             gradient[axis:2 * n:2] = -2.0 * weight * target[axis] * data.column_weights
         gradient[-1] = self.cost.slack_weight
-        radii = np.maximum(nlp.radii, MIN_ROW_SCALE)[:, None, :]            # (M, 1, D)
-        shape = (nlp.points.shape[0], self.model.n_poses, self.offsets.shape[0])
-        relief = np.broadcast_to(nlp.relief[:, None, :], shape)
-        n_fixed = n_vars + linear.shape[0]
+        # Rows are kept as (point, knot-and-disk) arrays, column k D + d for disk d at knot k, and
+        # picked by their flat index (point K D + column).
+        n_knots = self.model.n_poses
+        radii = np.tile(np.maximum(nlp.radii, MIN_ROW_SCALE), n_knots)          # (M, K D)
+        inverse_radii = 1.0 / radii
+        relief = np.tile(nlp.relief, n_knots)
+        n_columns = radii.shape[1]
+        columns = np.arange(n_columns)
+        point_x, point_y = nlp.points[:, 0:1], nlp.points[:, 1:2]
+        n_fixed = n_vars + n_linear
         # Which rows were active at the last answer: the next QP starts from them (a warm start of
         # the active set, kept per row by its point, knot and disk).
-        row_state = np.zeros(shape, dtype=np.int8)
+        row_state = np.zeros(radii.size, dtype=np.int8)
         fixed_state: np.ndarray | None = None
         buffer_slack = slack = 0.0
         status = "max_iter"
         iterations = 0
+        previous_step: np.ndarray | None = None
+        previous_change = math.inf
         for iterations in range(1, self.max_iter + 1):
             if clock() > deadline:
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True)
-            commands = knots.reshape(n, 2) if data.expansion is None else layout.expand(knots.reshape(n, 2))
-            poses, jacobian = self.model(commands, nlp.velocity)
-            if data.expansion is not None:
-                jacobian = jacobian @ data.expansion                                    # d pose / d U
-            centres, centre_jacobian = self._centres(poses, jacobian)
-            # Row gradients are (c - o) / r times the centre's Jacobian.
-            direction = (centres[None] - nlp.points[:, None, None, :]) / radii[..., None]   # (M, K, D, 2)
-            values = 0.5 * radii * (np.einsum("mkdi,mkdi->mkd", direction, direction) - 1.0)
+            if data.blocks:
+                poses, jacobian = data.model.evaluate(layout.expand(knots.reshape(n, 2)), nlp.velocity)
+                jacobian = np.add.reduceat(jacobian.reshape(n_knots, 3, -1, 2), layout.knots, axis=2)
+            else:
+                poses, jacobian = data.model.evaluate(knots, nlp.velocity)
+            centres, centre_jacobian = self._centres(poses, jacobian.reshape(n_knots, 3, 2 * n))
+            # Rows are (||c - o||^2 - r^2) / (2 r); their gradients (c - o) / r times the centre's Jacobian.
+            dx, dy = centres[0] - point_x, centres[1] - point_y                         # (M, K D)
+            values = dx * dx
+            values += dy * dy
+            values *= inverse_radii
+            values -= radii
+            values *= 0.5
+            flat_values = values.ravel()
             # Per knot and disk the nearest point when it is within ROW_WINDOW, and the rows active at
             # the previous answer, go to the QP at once; any other row near enough to bind is added
             # when the answer violates it.
             working = row_state != 0
             if values.shape[0]:
-                nearest = np.argmin(values, axis=0)
-                knot_index, disk_index = np.indices(nearest.shape)
-                close = values[nearest, knot_index, disk_index] <= ROW_WINDOW
-                working[nearest[close], knot_index[close], disk_index[close]] = True
-            candidates = values <= CHECK_WINDOW
+                nearest = np.argmin(values, axis=0) * n_columns + columns
+                working[nearest[flat_values[nearest] <= ROW_WINDOW]] = True
+            candidates = flat_values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
                 if round_index > 0 and clock() > deadline:
                     return NLPOutcome(None, 0.0, 0.0, "deadline", iterations, clock() - start_time, abandoned=True)
                 if round_index == MAX_ROW_ROUNDS:
                     working |= candidates
-                point, knot, disk = np.nonzero(working)
-                grads = np.einsum("ri,rij->rj", direction[point, knot, disk], centre_jacobian[knot, disk])
-                clearance = np.empty((point.size, n_vars))
-                clearance[:, :2 * n] = -grads
-                clearance[:, 2 * n] = -relief[point, knot, disk]
-                clearance[:, 2 * n + 1] = -1.0
-                guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[point, knot, disk]))
-                qp = QPData(data.hessian, gradient, np.vstack((linear, clearance)),
-                            np.concatenate((linear_high, values[point, knot, disk] - grads @ knots)),
-                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(point.size, -np.inf))),
+                rows = np.flatnonzero(working)
+                column = rows % n_columns
+                scale = inverse_radii.ravel()[rows, None]
+                row_relief = relief.ravel()[rows]
+                row_values = flat_values[rows]
+                # The rows as the QP writes them, -gradient . x <= value - gradient . knots.
+                matrix = np.empty((n_linear + rows.size, n_vars))
+                matrix[:n_linear] = linear
+                clearance = matrix[n_linear:, :2 * n]
+                np.multiply(centre_jacobian[0, column], dx.ravel()[rows, None] * -scale, out=clearance)
+                clearance -= centre_jacobian[1, column] * (dy.ravel()[rows, None] * scale)
+                matrix[n_linear:, 2 * n] = -row_relief
+                matrix[n_linear:, 2 * n + 1] = -1.0
+                guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[rows]))
+                qp = QPData(data.hessian, gradient, matrix,
+                            np.concatenate((linear_high, row_values + np.einsum("rj,j->r", clearance, knots))),
+                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))),
                             guess)
                 outcome = self.qp.solve(qp)
                 answer = outcome.x
@@ -312,23 +359,40 @@ class DirectSQP:
                     return NLPOutcome(None, 0.0, 0.0, f"QP failed ({outcome.status})", iterations,
                                       clock() - start_time)
                 # Every row linearised at the answer, through the centres' displacement.
-                moved = centre_jacobian @ (answer[:2 * n] - knots)                      # (K, D, 2)
-                linearised = values + np.einsum("mkdi,kdi->mkd", direction, moved) \
-                    + relief * answer[2 * n] + answer[2 * n + 1]
-                row_state = np.zeros(shape, dtype=np.int8)
+                move = answer[:2 * n] - knots
+                moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
+                row_state = np.zeros(radii.size, dtype=np.int8)
                 if outcome.active is not None:
                     fixed_state = outcome.active[:n_fixed]
-                    row_state[point, knot, disk] = outcome.active[n_fixed:]
+                    row_state[rows] = outcome.active[n_fixed:]
                 else:
-                    row_state[point, knot, disk] = linearised[point, knot, disk] < ACTIVE_TOLERANCE
-                violated = candidates & ~working & (linearised < -ROW_TOLERANCE)
+                    row_state[rows] = (row_values - np.einsum("rj,j->r", clearance, move)
+                                       + row_relief * answer[2 * n] + answer[2 * n + 1]) < ACTIVE_TOLERANCE
+                linearised = dx * moved_x
+                linearised += dy * moved_y
+                linearised *= inverse_radii
+                linearised += values
+                linearised += relief * answer[2 * n] + answer[2 * n + 1]
+                violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
+                violated &= ~working
                 if not violated.any():
                     break
                 working |= violated
-            change = float(np.max(np.abs(answer[:2 * n] - knots)))
+            step = answer[:2 * n] - knots
+            change = float(np.max(np.abs(step)))
             knots = answer[:2 * n].copy()
             buffer_slack, slack = float(answer[2 * n]), float(answer[2 * n + 1])
             if change <= STEP_TOLERANCE:
                 status = "converged"
                 break
+            if previous_step is not None and change < EXTRAPOLATION_WINDOW and iterations < self.max_iter:
+                # Contracting steps along one direction: jump to where their geometric series ends (the
+                # next QP, linearised there, makes the step that is checked for convergence; the last
+                # iterate returned is always a QP's answer).
+                ratio = change / previous_change
+                cosine = float(step @ previous_step) / float(np.linalg.norm(step) * np.linalg.norm(previous_step))
+                if EXTRAPOLATION_RATIOS[0] < ratio < EXTRAPOLATION_RATIOS[1] and cosine > EXTRAPOLATION_COSINE:
+                    knots = np.clip(knots + step * (ratio / (1.0 - ratio)), lower_bounds[:-2], upper_bounds[:-2])
+                    step = None
+            previous_step, previous_change = step, change
         return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time)

@@ -1,0 +1,92 @@
+"""The direct SQP's model and steps: the knots' model is the every-period model through ``B``, its
+Jacobian is the model's derivative, and extrapolating contracting steps leaves the answers where the
+plain SQP ends (tests/filters/test_mpc_replay.py checks both against casadi's sqpmethod)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from safenav import Pose2D, preset, unicycle_step
+from safenav.filters import MPCSafetyFilter
+from safenav.filters.mpc import BaseModel, PlanLayout, PlanModel, sqp
+from safenav.synthetic import Scene, Segment, synthetic_scan
+
+LAYOUTS = [(20, 20, 1), (51, 20, 1), (51, 20, 3), (12, 5, 1)]
+
+
+@pytest.mark.parametrize("periods, max_commands, hold", LAYOUTS)
+@pytest.mark.parametrize("time_constant", [0.0, 0.05])
+def test_the_knots_model_is_the_every_period_model_through_the_interpolation(periods, max_commands, hold,
+                                                                             time_constant):
+    layout = PlanLayout.of(periods, max_commands, hold)
+    base = BaseModel(0.02, time_constant)
+    rng = np.random.default_rng(periods + hold)
+    knots = rng.uniform(-1.0, 1.0, (layout.n_knots, 2))
+    velocity = rng.uniform(-0.5, 0.5, 2)
+    poses, jacobian = PlanModel(periods, base, layout)(knots, velocity)
+    every_poses, every_jacobian = PlanModel(periods, base)(layout.expand(knots), velocity)
+    assert poses.shape == every_poses.shape == (periods + (time_constant > 0.0), 3)
+    np.testing.assert_allclose(poses, every_poses, rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(jacobian, every_jacobian @ np.kron(layout.interpolation, np.eye(2)), rtol=0.0,
+                               atol=1e-12)
+    # ... and the model's derivative (central differences).
+    step = 1e-6
+    for index in rng.choice(knots.size, 5, replace=False):
+        moved = knots.ravel().copy()
+        moved[index] += step
+        ahead = PlanModel(periods, base, layout)(moved, velocity)[0]
+        moved[index] -= 2 * step
+        behind = PlanModel(periods, base, layout)(moved, velocity)[0]
+        np.testing.assert_allclose(jacobian[..., index], (ahead - behind) / (2 * step), rtol=0.0, atol=1e-7)
+
+
+def test_model_evaluations_share_their_buffers_and_calls_return_copies():
+    model = PlanModel(20, BaseModel(0.05, 0.0))
+    first, _ = model(np.full((20, 2), 0.5), np.zeros(2))
+    view, _ = model.evaluate(np.full((20, 2), 0.2), np.zeros(2))
+    assert not np.array_equal(first, view)
+    model.evaluate(np.full((20, 2), 0.5), np.zeros(2))
+    np.testing.assert_array_equal(first, view)      # the view shows the latest evaluation
+
+
+def wall_problems(name: str, dt: float, count: int) -> tuple[MPCSafetyFilter, list[sqp.PlanNLP]]:
+    """The NLPs an MPC solves with a wall just beside its turning path (issue 18's closed loop)."""
+    robot = preset(name)
+    safety = MPCSafetyFilter(robot, dt, budget=math.inf)
+    problems: list[sqp.PlanNLP] = []
+    solve = safety.backend.solve
+
+    def recording(nlp, *args, **kwargs):
+        problems.append(nlp)
+        return solve(nlp, *args, **kwargs)
+
+    safety.backend.solve = recording    # type: ignore[method-assign]
+    rng = np.random.default_rng(3)
+    scene = Scene.of(Segment((0.16, robot.radius + 0.12), (4.0, robot.radius + 0.12)))
+    pose, velocity = Pose2D(), np.zeros(2)
+    nominal = np.array([robot.v_max, robot.omega_max])
+    while len(problems) < count:
+        scan = synthetic_scan(robot, scene, pose, noise_std=robot.lidar.noise_std, rng=rng)
+        result = safety.filter(nominal, scan, velocity=velocity)
+        velocity = robot.clip(result.u, velocity, dt)
+        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+    safety.backend.solve = solve        # type: ignore[method-assign]
+    return safety, problems
+
+
+@pytest.mark.parametrize("name, dt", [("rosbot", 0.05), ("m2wr", 0.02)])
+def test_extrapolating_contracting_steps_ends_where_the_plain_sqp_ends(name, dt, monkeypatch):
+    safety, problems = wall_problems(name, dt, 40)
+    extrapolated = [safety.backend.solve(nlp) for nlp in problems]
+    monkeypatch.setattr(sqp, "EXTRAPOLATION_WINDOW", 0.0)
+    plain = [safety.backend.solve(nlp) for nlp in problems]
+    for fast, slow in zip(extrapolated, plain, strict=True):
+        assert fast.status == slow.status == "converged"
+        assert fast.iterations <= slow.iterations + 1
+        # Both stop on a step of 1e-5 while contracting about linearly: a few steps apart at most.
+        np.testing.assert_allclose(fast.knots, slow.knots, rtol=0.0, atol=1e-4)
+    # ... and it does extrapolate here: fewer iterations in all.
+    assert sum(outcome.iterations for outcome in extrapolated) < sum(outcome.iterations for outcome in plain)
