@@ -29,7 +29,9 @@ nominal by an escape command until the nominal's way is clear again:
    ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
    looks again after ``gap_retry``). Meanwhile it sets the wrapped filter's ``passage``, so that a
    filter that trades room for steering uses its narrow settings (the CBF its ``min_lookahead``;
-   never a weaker guarantee).
+   never a weaker guarantee). It sets it too while it turns in place (3. and the gap's turns):
+   the CBF's control point ahead of the body swings sideways in a turn, and between two
+   obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either
    along the m-line (the way the robot was heading when the deadlock began, tracked by
    integrating the commands, as in a bug algorithm), or in the direction of the nominal's own arc over one
@@ -217,7 +219,10 @@ class Escape:
                 return result
             self._start(nominal, scans, points, None if result.reason is None else result.reason.point)
         command = self._command(points, known, scans)
-        self.inner.passage = self._gap is not None    # through a gap the body fits with the filter's narrow settings
+        # Through a gap the body fits, and turning in place, the filter uses its narrow settings (the CBF's
+        # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
+        # place, and between two obstacles it can forbid both turns while the body itself moves nowhere).
+        self.inner.passage = self._gap is not None or (command[0] == 0.0 and command[1] != 0.0)
         result = self.inner.filter(command, scans, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._elapsed += held

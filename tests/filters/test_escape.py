@@ -246,3 +246,36 @@ def test_the_escape_goes_round_the_blocking_wall_towards_a_door_that_lies_right_
     x0, y0, x1, y1 = crossing
     assert abs(y0 + (y1 - y0) * (wall_x - x0) / (x1 - x0) - 0.42) < half
     assert outcome.goal_distance < 0.3
+
+
+def _pincer(robot_name: str) -> tuple[Scene, float]:
+    """Two poles the CBF's look-ahead control point (0.1 m ahead) is 5 mm outside the margin of: one ahead-left,
+    one to the right (goal_m2wr seed 4). Turning either way swings the control point towards one of them, while
+    the body (a disk about the base origin) moves nowhere."""
+    robot = preset(robot_name)
+    safety = CBFSafetyFilter(robot, 0.05)
+    reach = robot.radius + safety.lookahead + safety.margin + 0.005     # from the control point to each pole's edge
+    pole = 0.03
+    control = np.array([safety.lookahead, 0.0])
+    poles = [control + (reach + pole) * np.array([math.cos(a), math.sin(a)]) for a in (math.radians(20.0),
+                                                                                      math.radians(-80.0))]
+    return Scene.of(*(Circle(tuple(p), pole) for p in poles)), reach
+
+
+def test_the_escape_turns_in_place_between_two_obstacles_that_pin_the_look_ahead_point():
+    """Without ``passage`` the CBF forbids both turns (its control point would approach a pole); the escape sets it
+    while it turns in place, the look-ahead goes to 0 (never a lower barrier) and the turn goes through."""
+    robot_name = "m2wr"
+    robot = preset(robot_name)
+    scene, _ = _pincer(robot_name)
+    scan = synthetic_scan(robot, scene)
+    alone = CBFSafetyFilter(robot, 0.05)
+    for turn in (-robot.omega_max, robot.omega_max):
+        assert abs(alone.filter((0.0, turn), scan).u[1]) < 0.2 * robot.omega_max     # pinned both ways
+    escape = Escape(CBFSafetyFilter(robot, 0.05, deadlock_time=0.5))
+    turned = 0.0
+    for _ in range(60):    # the nominal pushes straight ahead: a deadlock, then the escape
+        result = escape.filter((robot.v_max, 0.0), scan)
+        turned += result.u[1] * 0.05
+        assert np.all(np.isfinite(result.u))
+    assert abs(turned) > 0.5, turned
