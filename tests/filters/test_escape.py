@@ -171,12 +171,13 @@ def test_the_escape_takes_the_cbf_through_the_door_when_its_look_ahead_fits():
 def test_the_escape_takes_the_default_cbf_through_the_door(robot, side):
     """The default look-ahead (0.1 m) needs a door 2 (R + 0.1 m + margin) wide, 15 cm more than this one: driving
     through the gap, the escape sets the filter's ``passage``, which shortens it to ``min_lookahead`` (0) and
-    says so in its reason (from the first period through the gap until there is room for the longer one)."""
+    says so in its reason (through the gap until there is room for the longer one; the escape also sets it while
+    it turns in place, so the first such reason may come from a turn before the gap)."""
     outcome, log = run(door_behind_a_wall(robot, "cbf", side), record=True)
     assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
     assert _through_the_door(log, robot, side) and outcome.goal_distance < 0.3
     narrow = [row for row in log if "look-ahead 0 m (a narrow passage)" in row["message"]]
-    assert narrow and "driving through a gap" in narrow[0]["escape"]
+    assert any("driving through a gap" in row["escape"] for row in narrow)
 
 
 def test_with_one_look_ahead_the_cbf_does_not_get_through_the_door():
