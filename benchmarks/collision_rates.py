@@ -43,7 +43,7 @@ from types import MappingProxyType
 from typing import Any
 
 from benchmarks.common import names, run_cli, run_sweep, sweep_parser, where, write_json
-from safenav._checks import argument_type, integer, positive, writable_file
+from safenav._checks import argument_type, integer, number, positive, writable_file
 from safenav.experiments import (
     EpisodeOutcome,
     cell_records,
@@ -94,6 +94,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--odometry", action="store_true",
                         help="also give the filters the odometry pose (default: the measured velocity only, "
                              "so remembered points are carried by dead reckoning)")
+    parser.add_argument("--range-noise", metavar="STD", type=argument_type(number, low=0.0, high=1.0), default=None,
+                        help="std of the simulated lidars' Gaussian range noise [m] instead of each preset's own "
+                             "(the filters' margins stay the preset's: how much of a narrow door the noise takes)")
     parser.add_argument("--mpc-reference", choices=REFERENCES, default="nominal",
                         help="what the MPC rows track: nominal (the default filter) or cbf (MPCConfig.reference="
                              "'cbf': the CBF's answer, braking as early as the CBF) (default: nominal)")
@@ -126,6 +129,9 @@ def _sweep(args: argparse.Namespace) -> int:
         specs = [dataclasses.replace(spec, odometry=True) for spec in specs]
     if not args.real_time:   # the same seed, the same episode, whatever the machine's load
         specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter)) for spec in specs]
+    if args.range_noise is not None:
+        specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
+                 for spec in specs]
     if args.mpc_reference != "nominal":
         tracking = {"reference": args.mpc_reference}
         specs = [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **tracking})
@@ -134,6 +140,7 @@ def _sweep(args: argparse.Namespace) -> int:
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
           f"{' and the odometry pose' if args.odometry else ' only'}"
+          f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
           f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
@@ -165,6 +172,7 @@ def _sweep(args: argparse.Namespace) -> int:
         "durations": {name: duration or scenario(name).duration for name in scenario_names},
         "control_dt": SimConfig().control_dt,
         "odometry": args.odometry,
+        "range_noise": args.range_noise,
         "episodes": len(specs),
         "workers": args.workers,
         "backend": args.backend,

@@ -74,3 +74,17 @@ def test_odometry_gives_the_filters_the_pose_and_the_report_says_so(tmp_path, ca
     assert "the filters get the measured velocity and the odometry pose" in capsys.readouterr().out
     report = json.loads(out.read_text())
     assert report["config"]["odometry"] is True and report["cells"][0]["collisions"] == 0
+
+
+@pytest.mark.sim
+def test_range_noise_replaces_the_presets_noise_in_the_simulator_only(tmp_path, capsys):
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--scenarios", "door_m2wr", "--filters", "cbf", "--seeds", "1", "--duration", "1",
+                                 "--workers", "1", "--range-noise", "0", "--no-progress", "--json", str(out)])
+    assert code == 0
+    assert "lidar range noise 0 m" in capsys.readouterr().out
+    assert json.loads(out.read_text())["config"]["range_noise"] == 0.0
+    with pytest.raises(SystemExit) as exit_info:     # an argparse usage error
+        collision_rates.main(["--scenarios", "door_m2wr", "--filters", "cbf", "--range-noise=-0.1"])
+    assert exit_info.value.code == 2
+    assert "--range-noise: must be a finite number >= 0 and <= 1, got -0.1" in capsys.readouterr().err
