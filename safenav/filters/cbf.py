@@ -302,7 +302,6 @@ class CBFSafetyFilter(SafetyFilter):
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
-        self._P_command = self._P[:2, :2].copy()
         self._abs_rows = families.abs_rows()
         self._polygon = self.body.outline if self.body.name == "polygon" else None
         self._lookaheads = {float(cfg.lookahead): self._reach_of(float(cfg.lookahead)),
@@ -359,6 +358,7 @@ class CBFSafetyFilter(SafetyFilter):
         kappa = 0.5 * turn * period
         t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
         t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
+        z_lower, z_upper = np.concatenate((lower, t_low)), np.concatenate((upper, t_high))    # the box on z
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
         points, uncertainty = view.points, view.uncertainty
@@ -408,9 +408,8 @@ class CBFSafetyFilter(SafetyFilter):
             sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
                                          self._allowance)
             obstacle = families.stack(barrier, braking, sweep)
-            box = (np.concatenate((lower, t_low)), np.concatenate((upper, t_high))) if cut else None
             obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
-                                             box=box)
+                                             box=(z_lower, z_upper) if cut else None)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)
@@ -418,8 +417,8 @@ class CBFSafetyFilter(SafetyFilter):
             rows = families.stack(obstacle, hard)
         else:
             rows = obstacle
-        return _Problem(rows, points, per_point, uncertainty, min_barrier, np.concatenate((lower, t_low)),
-                        np.concatenate((upper, t_high)), velocity, (lower, upper), clearance)
+        return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
+                        clearance)
 
     def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
         """Distance from the body to the nearest point [m] (``distance``: each point's from the base)."""
@@ -515,7 +514,7 @@ class CBFSafetyFilter(SafetyFilter):
         tiers up to it (:data:`SLACK_TIERS`) and the other rows stay hard."""
         P = self._P
         q = np.zeros(4)
-        q[:2] = -self._P_command @ self._target(u_nom)
+        q[:2] = -P[:2, :2] @ self._target(u_nom)
         lower, upper = problem.lower, problem.upper
         abs_rows = self._abs_rows
         G = np.vstack((abs_rows.G, rows.G))
@@ -765,8 +764,8 @@ class CBFSafetyFilter(SafetyFilter):
         """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP)."""
         if not len(hard):
             return True
-        qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((families.abs_rows().G, hard.G)),
-                    np.concatenate((families.abs_rows().h, hard.h)), problem.lower, problem.upper)
+        qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((self._abs_rows.G, hard.G)),
+                    np.concatenate((self._abs_rows.h, hard.h)), problem.lower, problem.upper)
         z = self.backend.solve(qp).x
         return z is not None and bool(np.all(hard.G @ z <= hard.h + VERIFY_TOLERANCE))
 

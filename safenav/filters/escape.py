@@ -433,7 +433,7 @@ def _blocking_bearing(points: np.ndarray, blocking: tuple[float, float] | None) 
     point ahead (within 90 degrees of the heading), else straight ahead."""
     if blocking is not None:
         return math.atan2(blocking[1], blocking[0])
-    ahead = points[points[:, 0] > 0.0] if points.shape[0] else points
+    ahead = points[points[:, 0] > 0.0]
     if ahead.shape[0] == 0:
         return 0.0
     nearest = ahead[int(np.argmin(np.hypot(ahead[:, 0], ahead[:, 1])))]

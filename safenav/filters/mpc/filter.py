@@ -245,7 +245,7 @@ class MPCSafetyFilter(SafetyFilter):
         periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))
         self.layout = PlanLayout.of(periods, cfg.max_commands)
         self._layouts: dict[int, PlanLayout] = {1: self.layout}
-        self._ramps: dict[int, _Ramps] = {}
+        self._ramps: dict[tuple[int, int, int], _Ramps] = {}
         # The reach's speed profile: accelerating from the start, braking to the end [m/s].
         self._speed_ramps = (np.arange(1, periods + 1) * self._step[0], np.arange(periods - 1, -1, -1) * self._step[0])
         self.offsets = np.array(self.body.centres, dtype=float)
@@ -305,17 +305,17 @@ class MPCSafetyFilter(SafetyFilter):
         return radii, actuator, buffer, soft
 
     def _ramps_for(self, layout: PlanLayout) -> _Ramps:
-        """The :class:`_Ramps` of a layout's call period (cached per filter)."""
-        hold = layout.hold
-        ramps = self._ramps.get(hold)
-        if ramps is None or self._layout_for(hold) is not layout:
-            blocks = np.arange(self.horizon) // hold
+        """The :class:`_Ramps` of a layout (cached per layout shape: one per call period seen)."""
+        key = (layout.periods, layout.max_commands, layout.hold)
+        ramps = self._ramps.get(key)
+        if ramps is None:
+            hold = layout.hold
+            blocks = np.arange(layout.periods) // hold
             ramps = _Ramps((blocks + 1)[:, None] * hold * self._step, blocks[:, None] * hold * self._step,
                            layout.period_changes[:, None] * self._step)
             for array in ramps:
                 array.flags.writeable = False
-            if self._layout_for(hold) is layout:
-                self._ramps[hold] = ramps
+            self._ramps[key] = ramps
         return ramps
 
     def _layout_for(self, hold: int) -> PlanLayout:
