@@ -100,6 +100,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mpc-reference", choices=REFERENCES, default="nominal",
                         help="what the MPC rows track: nominal (the default filter) or cbf (MPCConfig.reference="
                              "'cbf': the CBF's answer, braking as early as the CBF) (default: nominal)")
+    parser.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
+                        help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; 0: none, the default "
+                             "filter)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -132,8 +135,9 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.range_noise is not None:
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
                  for spec in specs]
-    if args.mpc_reference != "nominal":
-        tracking = {"reference": args.mpc_reference}
+    tracking = ({} if args.mpc_reference == "nominal" else {"reference": args.mpc_reference}) | (
+        {"lookahead": args.mpc_lookahead} if args.mpc_lookahead else {})
+    if tracking:
         specs = [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **tracking})
                  if unescaped(spec.filter) == "mpc" else spec for spec in specs]
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
@@ -141,7 +145,8 @@ def _sweep(args: argparse.Namespace) -> int:
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
           f"{' and the odometry pose' if args.odometry else ' only'}"
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
-          f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}")
+          f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}"
+          f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))
@@ -173,6 +178,8 @@ def _sweep(args: argparse.Namespace) -> int:
         "control_dt": SimConfig().control_dt,
         "odometry": args.odometry,
         "range_noise": args.range_noise,
+        "mpc_reference": args.mpc_reference,
+        "mpc_lookahead": args.mpc_lookahead,
         "episodes": len(specs),
         "workers": args.workers,
         "backend": args.backend,

@@ -746,7 +746,7 @@ def _has_body(filter_name: str, robot: str, body: str) -> bool:
 
 def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
-           mpc_references: Sequence[str] = ("nominal",)) -> list[dict[str, Any]]:
+           mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base); the geometry and the nominal are searched inside each."""
     cells = []
@@ -757,7 +757,8 @@ def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], 
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model
                 settings = ({} if body == "disk" else {"body": body}) | (
-                    {} if reference == "nominal" else {"reference": reference})
+                    {} if reference == "nominal" else {"reference": reference}) | (
+                    {"lookahead": mpc_lookahead} if mpc_lookahead and unescaped(filter_name) == "mpc" else {})
                 for dt in dts:
                     for base in bases:
                         for give_velocity in ((True, False) if base == "instant" else (True,)):
@@ -775,7 +776,8 @@ def cell_margin(cell: dict[str, Any]) -> float:
 def _cell_key(cell: dict[str, Any]) -> str:
     settings = cell.get("settings", {})
     return "/".join((cell["robot"], cell["filter_name"], *([settings["body"]] if "body" in settings else []),
-                     *([f"{settings['reference']}-reference"] if "reference" in settings else [])))
+                     *([f"{settings['reference']}-reference"] if "reference" in settings else []),
+                     *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -814,6 +816,8 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
     parser.add_argument("--mpc-reference", nargs="+", default=["nominal"], choices=REFERENCES,
                         help="what the MPC cells track (each a cell of its own): nominal, cbf (default: nominal)")
+    parser.add_argument("--mpc-lookahead", type=float, default=0.0, metavar="L",
+                        help="the MPC cells' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -837,7 +841,7 @@ def _run(args: argparse.Namespace) -> int:
         print(outcome)
         return 0 if not outcome.violated else 1
     cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies,
-                   args.mpc_reference)
+                   args.mpc_reference, args.mpc_lookahead)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

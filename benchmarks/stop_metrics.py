@@ -203,6 +203,7 @@ class StopJob:
     stay: float = 5.0
     real_time: bool = False
     mpc_reference: str = "nominal"
+    mpc_lookahead: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -255,6 +256,8 @@ def run_job(job: StopJob) -> dict[str, Any]:
     settings = {} if job.real_time else reproducible_settings(job.filter)
     if unescaped(job.filter) == "mpc":
         settings["reference"] = job.mpc_reference
+        if job.mpc_lookahead:
+            settings["lookahead"] = job.mpc_lookahead
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **settings)
     started = time.perf_counter()
     result = run_episode(plan.world, robot, Cruise(CRUISE_SPEED[job.robot]), safety_filter, config=config,
@@ -293,9 +296,12 @@ def passes(row: dict[str, Any]) -> bool:
 
 def label(record: dict[str, Any]) -> str:
     """The row name of an episode's filter: ``mpc (cbf reference)`` for the MPC tracking the CBF."""
-    reference = record.get("mpc_reference", "nominal")
-    return record["filter"] if unescaped(record["filter"]) != "mpc" or reference == "nominal" else \
-        f"{record['filter']} ({reference} reference)"
+    if unescaped(record["filter"]) != "mpc":
+        return record["filter"]
+    reference, lookahead = record.get("mpc_reference", "nominal"), record.get("mpc_lookahead", 0.0)
+    told = ([] if reference == "nominal" else [f"{reference} reference"]) + (
+        [f"look-ahead {lookahead:g} m"] if lookahead else [])
+    return record["filter"] + (f" ({', '.join(told)})" if told else "")
 
 
 def summarise(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -361,6 +367,8 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mpc-reference", type=names, default=["nominal"], metavar="A,B",
                         help="what the MPC rows track, each a row of its own: nominal (the default filter), "
                              "cbf (MPCConfig.reference='cbf': brakes as early as the CBF) (default: nominal)")
+    parser.add_argument("--mpc-lookahead", type=argument_type(number, low=0.0, high=10.0), default=0.0, metavar="L",
+                        help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
     parser.add_argument("--quick", action="store_true", help="one seed")
 
 
@@ -375,7 +383,7 @@ def _run(args: argparse.Namespace) -> int:
     references = [choice("MPC reference", name, REFERENCES) for name in args.mpc_reference]
     seeds = 1 if args.quick else args.seeds
     jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay,
-                    real_time=args.real_time, mpc_reference=reference)
+                    real_time=args.real_time, mpc_reference=reference, mpc_lookahead=args.mpc_lookahead)
             for robot in robots for name in filters
             for reference in (references if unescaped(name) == "mpc" else ["nominal"])
             for episode in EPISODES for seed in range(seeds)]

@@ -19,8 +19,10 @@ nominal by an escape command until the nominal's way is clear again:
    right of the heading and still be reached by going left); without an opening, the side with
    more free space, or the side the nominal turns to.
 3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
-   with it on the other side, holding ``follow_distance`` beyond the margin; turn in place
-   towards the chosen side when something is ahead, or when the filter blocks the following.
+   with it on the other side (its nearest current or remembered point: a lidar that does not look
+   back loses an obstacle's end as the robot goes round it), holding ``follow_distance`` beyond the
+   margin; turn in place towards the chosen side when something is ahead, or when the filter blocks
+   the following.
 4. **Back out** when forward is blocked and the rear is seen and free.
 5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
    clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
@@ -32,11 +34,17 @@ nominal by an escape command until the nominal's way is clear again:
    never a weaker guarantee). It sets it too while it turns in place (3. and the gap's turns):
    the CBF's control point ahead of the body swings sideways in a turn, and between two
    obstacles it can forbid both turns while the body itself would move nowhere.
-6. **Leave** after at least ``min_time`` when the way is clear for ``clear_distance``, either
-   along the m-line (the way the robot was heading when the deadlock began, tracked by
-   integrating the commands, as in a bug algorithm), or in the direction of the nominal's own arc over one
-   second when it drives forward; or after ``max_time`` (the next deadlock then tries the other
-   side).
+6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
+   the robot was heading when the deadlock began, tracked by integrating the commands, as in a bug
+   algorithm), or in the direction of the nominal's own arc over one second when it drives forward;
+   or after ``max_time`` (the next deadlock then tries the other side). Clear means for
+   ``clear_distance``, or, when the corridor passes a place where a deadlock began (within twice
+   ``clear_half_width`` of its centre line; the last :data:`SPOTS` such places within
+   :data:`SPOT_RANGE` are remembered, dead-reckoned by the commands or taken from the odometry pose
+   when the caller gives one), for ``clear_distance`` beyond that place: a bug algorithm's leave
+   condition, progress past where the robot got stuck. Without it the escape hands back at the
+   mouth of a U-shaped trap (the way in is clear for ``clear_distance`` there), and a goal-seeking
+   nominal drives straight back in. The filter never learns the goal; only where it got stuck.
 
 A corridor is **clear** when the body fits along it with the wrapped filter's margin: no current
 or remembered point closer to its centre line than ``R + margin + lookahead`` (the radius of the
@@ -64,7 +72,7 @@ import numpy as np
 
 from safenav import _checks
 from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, as_scans, progress
-from safenav.geometry import wrap_angle
+from safenav.geometry import Pose2D, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
@@ -84,6 +92,12 @@ FORWARD_REQUEST = 0.25
 
 #: Openings farther than this from the robot do not choose the side [m].
 OPENING_RANGE = 2.0
+
+#: How many places where deadlocks began the escape remembers (the oldest is forgotten first).
+SPOTS = 8
+
+#: Places farther than this from the robot are forgotten [m] (dead reckoning drifts with the distance).
+SPOT_RANGE = 5.0
 
 
 @dataclass(frozen=True)
@@ -162,6 +176,8 @@ class Escape:
         self._gap_left = 0.0    # distance still to drive through it [m]
         self._gap_wait = 0.0    # distance to follow before looking for a gap again [m]
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
+        self._odometry = Pose2D()        # the base's pose since the reset (odometry, else the commands) [m, m, rad]
+        self._spots: list[np.ndarray] = []   # where deadlocks began, in the frame of _odometry [m]
 
     @property
     def robot(self) -> RobotSpec:
@@ -194,6 +210,7 @@ class Escape:
         self._side, self._elapsed, self._backing, self._last_side, self._turned = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled = math.inf, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._odometry, self._spots = Pose2D(), []
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
@@ -202,6 +219,8 @@ class Escape:
         """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
         nominal = as_command(u_nom, "u_nom")
         scans = self.inner._match(as_scans(scan))
+        if kwargs.get("pose") is not None:
+            self._odometry = Pose2D(*(float(value) for value in kwargs["pose"]))
         points = np.vstack([s.points() for s in scans])
         memory = self.inner.memory
         known = points if memory is None or len(memory) == 0 else np.vstack((points, memory.points))
@@ -211,6 +230,7 @@ class Escape:
             self.inner.passage = False
             result = self.inner.filter(nominal, scans, **kwargs)
             held = result.period if math.isfinite(result.period) else self.dt
+            self._move(result.u, held)
             self._since += held
             forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
             self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
@@ -225,6 +245,7 @@ class Escape:
         self.inner.passage = self._gap is not None or (command[0] == 0.0 and command[1] != 0.0)
         result = self.inner.filter(command, scans, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
+        self._move(result.u, held)
         self._elapsed += held
         self._turned = float(wrap_angle(self._turned + result.u[1] * held))
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
@@ -271,6 +292,33 @@ class Escape:
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
         self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
+
+    def _move(self, command: np.ndarray, held: float) -> None:
+        """Dead-reckon the base by the command sent and held for ``held`` [s] (the odometry pose, when the caller
+        gives one, replaces it at the next call), and forget the deadlock places that are too far to matter."""
+        if not np.all(np.isfinite(command)):
+            return
+        self._odometry = unicycle_step(self._odometry, float(command[0]), float(command[1]), held)
+        here = np.array(self._odometry[:2])
+        self._spots = [spot for spot in self._spots if math.hypot(*(spot - here)) <= SPOT_RANGE]
+
+    def _needed(self, direction: float) -> float:
+        """How far the base-frame ``direction`` [rad] must be clear to hand back [m]: ``clear_distance``, or
+        ``clear_distance`` beyond the farthest place where a deadlock began that a corridor along it passes
+        (within twice ``clear_half_width`` of its centre line): the way must be clear past where the robot
+        got stuck, not just up to the trap's mouth (a bug algorithm's leave condition)."""
+        length = self.config.clear_distance
+        if not self._spots:
+            return length
+        x, y, yaw = self._odometry
+        c, s = math.cos(yaw + direction), math.sin(yaw + direction)
+        for spot in self._spots:
+            dx, dy = spot[0] - x, spot[1] - y
+            along, across = c * dx + s * dy, c * dy - s * dx
+            if along > 0.0 and abs(across) < 2.0 * self.clear_half_width:
+                length = max(length, along + self.config.clear_distance)
+        return length
 
     def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float) -> float | None:
         """Bearing [rad] of the opening nearest the ``intent`` bearing [rad], within ``gap_window`` of it;
@@ -337,10 +385,11 @@ class Escape:
             if robot.v_min < 0.0 and self._rear_free(scans, keep) and self._elapsed > 2.0 * cfg.min_time:
                 self._backing = cfg.back_time
             return np.array([0.0, side * turn])          # turn towards the chosen side in place
-        if points.shape[0] == 0:
+        if known.shape[0] == 0:
             return np.array([speed, 0.0])
-        # Keep the nearest point on the other side at `keep`, moving along its tangent.
-        other = points[np.sign(points[:, 1]) == -side] if np.any(np.sign(points[:, 1]) == -side) else points
+        # Keep the nearest point on the other side at `keep`, moving along its tangent (remembered points too:
+        # a lidar that does not look back loses an obstacle's end as the robot goes round it).
+        other = known[np.sign(known[:, 1]) == -side] if np.any(np.sign(known[:, 1]) == -side) else known
         distance = np.hypot(other[:, 0], other[:, 1])
         nearest = other[int(np.argmin(distance))]
         bearing = math.atan2(nearest[1], nearest[0])
@@ -386,20 +435,21 @@ class Escape:
         passage = self._seen(scans, directions) & (room >= width) & np.isfinite(left) & np.isfinite(right)
         return passage, np.minimum(left, right)
 
-    def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray) -> np.ndarray:
-        """Which base-frame ``directions`` [rad] some lidar looks along now, at least partly (its edge beams
-        are enough: a corridor's sides are in the memory)."""
-        spread = math.atan2(self.clear_half_width, self.config.clear_distance)
+    def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray, length: float | None = None) -> np.ndarray:
+        """Which base-frame ``directions`` [rad] some lidar looks along now, at least partly, over a corridor
+        ``length`` long [m] (default ``clear_distance``; its edge beams are enough: a corridor's sides are in
+        the memory, but the longer the corridor the nearer its direction they must be)."""
+        spread = math.atan2(self.clear_half_width, self.config.clear_distance if length is None else length)
         return np.array([any(scan.covers(d) or scan.coverage(d - spread, d + spread) > 0.0 for scan in scans)
                          for d in directions], dtype=bool)
 
     def _clear(self, known: np.ndarray, scans: tuple[LaserScan, ...], direction: float) -> bool:
-        """Whether the base-frame ``direction`` [rad] is clear for ``clear_distance`` (see the module docstring):
-        seen now, and no point, current or remembered, in its corridor (unknown is never clear)."""
+        """Whether the base-frame ``direction`` [rad] is clear for as long as :meth:`_needed` asks (see the module
+        docstring): seen now, and no point, current or remembered, in its corridor (unknown is never clear)."""
         directions = np.array([direction])
-        width = self.clear_half_width
-        left, right = _side_room(known, directions, self.config.clear_distance, width)
-        return bool(self._seen(scans, directions)[0] and min(left[0], right[0]) >= width)
+        width, length = self.clear_half_width, self._needed(direction)
+        left, right = _side_room(known, directions, length, width)
+        return bool(self._seen(scans, directions, length)[0] and min(left[0], right[0]) >= width)
 
     def _should_leave(self, nominal: np.ndarray, known: np.ndarray, scans: tuple[LaserScan, ...]) -> bool:
         """Whether to hand back: through the gap, or the way clear again (after ``min_time``), or timed out."""

@@ -88,3 +88,18 @@ def test_range_noise_replaces_the_presets_noise_in_the_simulator_only(tmp_path, 
         collision_rates.main(["--scenarios", "door_m2wr", "--filters", "cbf", "--range-noise=-0.1"])
     assert exit_info.value.code == 2
     assert "--range-noise: must be a finite number >= 0 and <= 1, got -0.1" in capsys.readouterr().err
+
+
+@pytest.mark.sim
+def test_mpc_lookahead_reaches_the_mpc_rows_only(tmp_path, capsys):
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf,mpc", "--seeds", "1", "--duration",
+                                 "1", "--workers", "1", "--mpc-lookahead", "0.1", "--no-progress", "--json", str(out)])
+    assert code == 0
+    assert "the MPC plans a look-ahead of 0.1 m" in capsys.readouterr().out
+    assert json.loads(out.read_text())["config"]["mpc_lookahead"] == 0.1
+    specs = collision_rates.episode_specs(collision_rates.matrix(["goal_rosbot"], None, ["cbf", "mpc"]), range(1))
+    assert all("lookahead" not in spec.filter_options for spec in specs)   # the default filters, unchanged
+    with pytest.raises(SystemExit) as exit_info:
+        collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "mpc", "--mpc-lookahead=-1"])
+    assert exit_info.value.code == 2

@@ -149,3 +149,10 @@ def test_the_mpc_tracking_the_cbf_stops_within_the_collision_monitors_time_and_t
 def test_an_unknown_mpc_reference_is_a_usage_error(capsys):
     assert main(["--filters", "mpc", "--mpc-reference", "zones", "--quick", "--no-progress"]) == 2
     assert "zones" in capsys.readouterr().err
+
+
+def test_the_mpc_lookahead_is_its_own_row_label():
+    assert label({"filter": "mpc", "mpc_reference": "nominal", "mpc_lookahead": 0.1}) == "mpc (look-ahead 0.1 m)"
+    assert label({"filter": "mpc+escape", "mpc_reference": "cbf", "mpc_lookahead": 0.2}) == \
+        "mpc+escape (cbf reference, look-ahead 0.2 m)"
+    assert label({"filter": "cbf", "mpc_lookahead": 0.1}) == "cbf"

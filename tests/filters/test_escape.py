@@ -280,3 +280,30 @@ def test_the_escape_turns_in_place_between_two_obstacles_that_pin_the_look_ahead
         turned += result.u[1] * 0.05
         assert np.all(np.isfinite(result.u))
     assert abs(turned) > 0.5, turned
+
+
+def trap_facing_the_goal(robot: str, filter_name: str, **settings) -> Episode:
+    """A U-shaped trap of the dead-end scenarios (mouth ``4 R + 0.4`` wide, 1.2 m deep) with its mouth 0.8 m ahead
+    and facing the robot, the goal 4 m straight ahead, behind its closed end: the go-to-goal nominal drives into
+    the trap and deadlocks at the closed end, and only a way round the outside of an arm leads to the goal."""
+    half, mouth, back = 0.5 * (4.0 * preset(robot).radius + 0.4), 0.8, 2.0
+    trap = ((mouth, half, back, half), (back, half, back, -half), (back, -half, mouth, -half))
+    return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05, segments=trap, nominal="goal",
+                   params=(4.0, 0.0), duration=40.0, escape=True, settings=settings)
+
+
+@pytest.mark.parametrize("robot", ["rosbot", "puzzlebot", "m2wr"])
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlocked_in(robot, filter_name):
+    """Out of the trap, the way the robot was going (the m-line) is clear for ``clear_distance`` at the mouth,
+    but it leads back to where the deadlock began: the escape hands back only where the way is clear past
+    that place (a bug algorithm's leave condition). Before, it handed back at the mouth, the nominal drove in
+    again and the robot went round that loop until the end (the dead-end scenario, ROSbot seed 0); and the
+    m2wr, whose lidar does not look back, lost the arm's end as it went round it and drove off into the open."""
+    settings = {"budget": math.inf} if filter_name == "mpc" else {}
+    outcome, log = run(trap_facing_the_goal(robot, filter_name, **settings), record=True)
+    assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
+    assert outcome.goal_distance < 0.3
+    half = 0.5 * (4.0 * preset(robot).radius + 0.4)
+    handed_back = [row["pose"] for before, row in itertools.pairwise(log) if before["escape"] and not row["escape"]]
+    assert all(x > 2.0 or abs(y) > half for x, y, _ in handed_back), handed_back

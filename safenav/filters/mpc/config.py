@@ -87,6 +87,11 @@ class MPCConfig:
         body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the
             footprint, :meth:`~safenav.filters.body.BodyModel.cover`).
         n_disks: disks of the cover.
+        lookahead: a control disk of the (foremost) body disk's radius this far ahead of it [m]
+            (0: none). The plan keeps it clear like the body, but verification does not: it
+            makes the plan brake earlier head-on and turn to go round what is ahead (turning
+            moves it sideways), as a barrier filter's look-ahead point does; the guarantee stays
+            the body's. Dropped while the filter's ``passage`` is set.
         n_points: the most obstacle points the optimiser sees at once (its slots; the nearest per
             angular bin); the plan is checked against every point in reach, and missed points are
             swapped in. Default: 64 for the direct SQP (it passes only the rows that can bind to
@@ -142,6 +147,7 @@ class MPCConfig:
     buffer_cost: float = 1.0
     body: str = "disk"
     n_disks: int = 3
+    lookahead: float = 0.0
     n_points: int | None = None
     solver: str = "daqp"
     hessian: str = "gauss-newton"
@@ -174,6 +180,7 @@ class MPCConfig:
         _checks.number(name + "buffer_cost", self.buffer_cost, low=0.0, high=1e9, low_open=True)
         _checks.choice("MPC body model", self.body, BODIES)
         _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
+        _checks.number(name + "lookahead", self.lookahead, low=0.0, high=10.0)
         if self.n_points is not None:
             _checks.integer(name + "n_points", self.n_points, low=1, high=2000)
         if not isinstance(self.solver, str) or not _is_known_solver(self.solver.lower()):

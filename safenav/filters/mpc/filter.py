@@ -144,6 +144,16 @@ class MPCSafetyFilter(SafetyFilter):
     moves; constraints, verification and fallbacks are unchanged, and the result keeps the
     nominal as ``u_nom``.
 
+    **Look-ahead (opt-in, ``lookahead``).** With the body's disk about the base origin a turn
+    changes no clearance, so in front of an obstacle straight ahead the plan that stops is the
+    optimum of the tracking cost and the robot stands there while the nominal points at it. A
+    control disk of the (foremost) body disk's radius ``lookahead`` ahead of it moves sideways in
+    a turn, as a barrier filter's look-ahead point does: planned like the body's disks (radius,
+    buffer, "no nearer than now"), it makes the plan brake earlier head-on and turn to go round.
+    It is never verified and never part of the status or ``min_barrier``: the guarantee below is
+    the body's. It ignores remembered points (a walker that left the field of view would pin it)
+    and is dropped while :attr:`~safenav.filters.base.SafetyFilter.passage` is set.
+
     **Minimal intervention (fast path).** The candidate "``u_nom`` clipped to the reachable
     box, then brake at the acceleration limits to a stop" is checked against every bound and
     every point in reach; when it passes, its first command is returned (``u_nom`` itself,
@@ -248,7 +258,16 @@ class MPCSafetyFilter(SafetyFilter):
         self._ramps: dict[tuple[int, int, int], _Ramps] = {}
         # The reach's speed profile: accelerating from the start, braking to the end [m/s].
         self._speed_ramps = (np.arange(1, periods + 1) * self._step[0], np.arange(periods - 1, -1, -1) * self._step[0])
-        self.offsets = np.array(self.body.centres, dtype=float)
+        # The body's disks, then (with a look-ahead) the control disk ahead of the foremost one.
+        self.n_body = self.body.n_disks
+        centres, radii = np.array(self.body.centres, dtype=float), np.array(self.body.radii, dtype=float)
+        self.lookahead = float(cfg.lookahead)
+        if self.lookahead > 0.0:
+            front = int(np.argmax(centres[:, 0]))
+            centres = np.vstack((centres, centres[front] + (self.lookahead, 0.0)))
+            radii = np.append(radii, radii[front])
+        self.offsets = centres
+        self._disk_radii = radii
         self._inflations: dict[int, tuple[np.ndarray, np.ndarray, float, float]] = {}
         self.inflated_radii, self.actuator_errors, self.buffer, self.soft_buffer = self._inflation(1)
         self.weights = (float(cfg.weights[0]), float(cfg.weights[1]))
@@ -287,9 +306,10 @@ class MPCSafetyFilter(SafetyFilter):
         held = hold * dt
         arc = 0.5 * chord * math.sin(0.5 * min(robot.omega_max * dt, 0.5 * math.pi))
         actuator = spread * held * held * (robot.a_max + (self.speed * held + lever) * robot.alpha_max)
-        radii = np.hypot(self.body.radii + self.margin + arc + actuator, 0.5 * chord)
+        radii = np.hypot(self._disk_radii + self.margin + arc + actuator, 0.5 * chord)
         lidar = robot.lidar
-        to_lidar = np.hypot(lidar.mount.x - self.offsets[:, 0], lidar.mount.y - self.offsets[:, 1])
+        body = self.offsets[:self.n_body]
+        to_lidar = np.hypot(lidar.mount.x - body[:, 0], lidar.mount.y - body[:, 1])
         nearest = int(np.argmin(to_lidar))
         radii[nearest] = max(radii[nearest], lidar.range_min + to_lidar[nearest])
         setting = self.config.buffer
@@ -453,14 +473,17 @@ class MPCSafetyFilter(SafetyFilter):
         inflated, _, buffer, soft = self._inflation(hold)
         if points.shape[0]:
             now = np.hypot(points[:, None, 0] - offsets[None, :, 0], points[:, None, 1] - offsets[None, :, 1])
-            min_barrier = float(np.min(now - uncertainty[:, None] - (body.radii + self.margin)[None, :]))
+            barriers = now[:, :self.n_body] - uncertainty[:, None] - (body.radii + self.margin)[None, :]
+            min_barrier = float(np.min(barriers))
             reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
             ranges = np.hypot(points[:, 0], points[:, 1])
             keep = ranges <= reach + buffer + uncertainty
+            remembered = np.arange(points.shape[0])[keep] >= view.n_current
             points, uncertainty, now, ranges = points[keep], uncertainty[keep], now[keep], ranges[keep]
         else:
             now = np.empty((0, offsets.shape[0]))
             ranges = np.empty(0)
+            remembered = np.empty(0, dtype=bool)
             min_barrier = math.inf
         guaranteed = inflated[None, :] + uncertainty[:, None]
         # The planner also keeps the growth of a point's uncertainty at the next carry by the measured
@@ -468,12 +491,18 @@ class MPCSafetyFilter(SafetyFilter):
         # limits), so that the shifted plan stays feasible once a point has left the field of view.
         held = hold * self.dt
         drift = 0.5 * held * held * (self.robot.a_max + ranges * self.robot.alpha_max)
-        floor = guaranteed + (buffer - soft) + drift[:, None]
+        floor = np.minimum(guaranteed + (buffer - soft) + drift[:, None], now)
+        planned = np.minimum(floor + soft, now)
+        guaranteed = np.minimum(guaranteed, now)
+        if self.lookahead > 0.0:
+            # The control disk is planned like the body (it brakes and steers the plan early) but never
+            # verified: the guarantee is the body's. Through a passage it is dropped.
+            guaranteed[:, self.n_body:] = -np.inf
+            ignored = remembered if not self.passage else np.ones(points.shape[0], dtype=bool)
+            planned[ignored, self.n_body:] = floor[ignored, self.n_body:] = 0.0
         lower, upper = self._bounds(velocity, view.frontier, hold)
-        return MPCProblem(u_nom, velocity.copy(), points, uncertainty, np.minimum(floor + soft, now),
-                          np.minimum(guaranteed, now),
-                          np.minimum(floor, now), lower, upper, self._layout_for(hold), view.frontier, min_barrier,
-                          body.clearance(view.points))
+        return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
+                          self._layout_for(hold), view.frontier, min_barrier, body.clearance(view.points))
 
     # ------------------------------------------------------------------ plans
 
