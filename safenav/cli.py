@@ -26,7 +26,7 @@ from types import MappingProxyType, ModuleType
 from typing import TYPE_CHECKING
 
 from safenav import __version__
-from safenav._checks import argument_type, choice, integer, positive, writable_file
+from safenav._checks import argument_type, choice, integer, number, positive, writable_file
 from safenav.errors import InvalidConfig, SafeNavError
 
 if TYPE_CHECKING:
@@ -156,12 +156,18 @@ def _run(args: argparse.Namespace) -> int:
             raise InvalidConfig(f"--mpc-reference applies to --filter mpc (what its plan tracks); got --filter "
                                 f"{args.filter}")
         options["reference"] = args.mpc_reference
+    if args.mpc_lookahead:
+        if unescaped(filter_name) != "mpc":
+            raise InvalidConfig(f"--mpc-lookahead applies to --filter mpc (its look-ahead disk); got --filter "
+                                f"{args.filter}")
+        options["lookahead"] = args.mpc_lookahead
     spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,
                        record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
     _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
          f"policy {policy}, filter {filter_name}"
-         f"{f' ({args.mpc_reference} reference)' if args.mpc_reference else ''}, up to {duration:g} s")
+         f"{f' ({args.mpc_reference} reference)' if args.mpc_reference else ''}"
+         f"{f' (look-ahead {args.mpc_lookahead:g} m)' if args.mpc_lookahead else ''}, up to {duration:g} s")
     outcome = run_spec(spec)
     _print_summary(outcome)
     title = f"{name}, seed {args.seed}\n{policy} + filter {filter_name}"
@@ -355,6 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--mpc-reference", metavar="REF", type=name_type("MPC reference", REFERENCES), default=None,
                      help="with --filter mpc, what its plan tracks: nominal (the default) or cbf (the CBF's answer: "
                           "it brakes as early as the CBF)")
+    run.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
+                     help="with --filter mpc, its look-ahead control disk [m] (MPCConfig.lookahead: planned, never "
+                          "verified; it turns the plan round what is ahead) (default: 0, none)")
     run.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                      help="seed of the world, the start and the noise (default: 0)")
     run.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,

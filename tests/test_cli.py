@@ -245,6 +245,24 @@ def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, 
     assert "zones" in capsys.readouterr().err
 
 
+def test_run_passes_the_mpc_lookahead_and_refuses_it_for_another_filter(capsys, monkeypatch):
+    specs = []
+
+    def record(spec):
+        specs.append(spec)
+        raise _Stopped
+
+    monkeypatch.setattr(experiments, "run_spec", record)
+    with pytest.raises(_Stopped):
+        main(["run", "--filter", "mpc", "--no-escape", "--mpc-lookahead", "0.1"])
+    assert dict(specs[0].filter_options) == {"lookahead": 0.1} and specs[0].filter == "mpc"
+    assert "(look-ahead 0.1 m)" in capsys.readouterr().out
+    assert main(["run", "--filter", "cbf", "--mpc-lookahead", "0.1"]) == 2
+    assert "--mpc-lookahead applies to --filter mpc" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "--filter", "mpc", "--mpc-lookahead", "-1"])
+
+
 @pytest.mark.parametrize(("argv", "tutorial_filters"), [
     ([], ["none", "cbf+escape", "mpc+escape"]),
     (["--no-escape"], ["none", "cbf", "mpc"]),
