@@ -418,7 +418,8 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> n
     return inside & (seen.take(index, mode="clip") >= np.hypot(dx, dy) - tolerance)
 
 
-def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int) -> np.ndarray:
+def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int,
+                    angles: np.ndarray | None = None) -> np.ndarray:
     """Indices of the point with the smallest key in each angular bin around ``centre``.
 
     Args:
@@ -426,13 +427,16 @@ def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, f
         keys: ``(N,)`` values to minimise per bin (e.g. barrier values).
         centre: the point the bins are centred on [m].
         n_bins: number of equal bins over the full turn.
+        angles: ``(N,)`` the points' bearings from ``centre`` [rad], when already known (a caller
+            that bins the same points several times computes them once).
 
     Returns:
         Indices into ``points``, in increasing key order.
     """
     if len(points) == 0:
         return np.empty(0, dtype=np.intp)
-    angles = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
+    if angles is None:
+        angles = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
     bins = ((angles + math.pi) * (n_bins / TWO_PI)).astype(np.intp) % n_bins
     order = np.lexsort((keys, bins))
     sorted_bins = bins[order]
