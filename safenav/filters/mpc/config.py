@@ -91,7 +91,8 @@ class MPCConfig:
             (0: none). The plan keeps it clear like the body, but verification does not: it
             makes the plan brake earlier head-on and turn to go round what is ahead (turning
             moves it sideways), as a barrier filter's look-ahead point does; the guarantee stays
-            the body's. Dropped while the filter's ``passage`` is set.
+            the body's. It ignores remembered points, and is dropped while the filter's
+            ``passage`` is set.
         n_points: the most obstacle points the optimiser sees at once (its slots; the nearest per
             angular bin); the plan is checked against every point in reach, and missed points are
             swapped in. Default: 64 for the direct SQP (it passes only the rows that can bind to

@@ -232,7 +232,8 @@ class MPCProblem(NamedTuple):
     radii: np.ndarray
     """``(M, D)`` distance the planner aims to keep each disk centre from each point at every knot [m]."""
     guaranteed: np.ndarray
-    """``(M, D)`` distance a verified plan keeps each disk centre from each point at every knot [m]."""
+    """``(M, D)`` distance a verified plan keeps each disk centre from each point at every knot [m]
+    (``-inf`` in the column of the look-ahead's control disk, which is never verified)."""
     floor: np.ndarray
     """``(M, D)`` the nearest the planner may come by using the soft part of the buffer [m]: the
     guaranteed radius, the buffer's actuator part and the growth of the point's uncertainty at the
