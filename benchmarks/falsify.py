@@ -46,6 +46,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
 from benchmarks.common import SHIPPED, run_cli, where
+from safenav._checks import argument_type, number
 from safenav._optional import require
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter, unescaped
@@ -816,7 +817,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
     parser.add_argument("--mpc-reference", nargs="+", default=["nominal"], choices=REFERENCES,
                         help="what the MPC cells track (each a cell of its own): nominal, cbf (default: nominal)")
-    parser.add_argument("--mpc-lookahead", type=float, default=0.0, metavar="L",
+    parser.add_argument("--mpc-lookahead", type=argument_type(number, low=0.0, high=10.0), default=0.0, metavar="L",
                         help="the MPC cells' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")

@@ -151,16 +151,15 @@ def _run(args: argparse.Namespace) -> int:
     policy = args.policy or task.policies[0]
     filter_name = escaped(args.filter, not args.no_escape)
     options = {}
-    if args.mpc_reference is not None:
+    # The MPC's own options: (flag, MPCConfig field, what it sets, the value given or None).
+    mpc_options = (("--mpc-reference", "reference", "what its plan tracks", args.mpc_reference),
+                   ("--mpc-lookahead", "lookahead", "its look-ahead disk", args.mpc_lookahead or None))
+    for flag, field, what, value in mpc_options:
+        if value is None:
+            continue
         if unescaped(filter_name) != "mpc":
-            raise InvalidConfig(f"--mpc-reference applies to --filter mpc (what its plan tracks); got --filter "
-                                f"{args.filter}")
-        options["reference"] = args.mpc_reference
-    if args.mpc_lookahead:
-        if unescaped(filter_name) != "mpc":
-            raise InvalidConfig(f"--mpc-lookahead applies to --filter mpc (its look-ahead disk); got --filter "
-                                f"{args.filter}")
-        options["lookahead"] = args.mpc_lookahead
+            raise InvalidConfig(f"{flag} applies to --filter mpc ({what}); got --filter {args.filter}")
+        options[field] = value
     spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,
                        record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration

@@ -205,15 +205,8 @@ class _Stopped(Exception):
     """Raised where an episode would start, once its spec is recorded."""
 
 
-@pytest.mark.parametrize(("argv", "expected"), [
-    ([], "cbf+escape"),
-    (["--no-escape"], "cbf"),
-    (["--filter", "mpc"], "mpc+escape"),
-    (["--filter", "zones", "--no-escape"], "zones"),
-    (["--filter", "cbf+escape"], "cbf+escape"),
-    (["--filter", "none"], "none"),              # nothing to wrap: the naive robot
-])
-def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, capsys, monkeypatch):
+def run_spec_of(argv, monkeypatch):
+    """The episode spec ``safenav run ARGV`` builds, recorded where the episode would start."""
     specs = []
 
     def record(spec):
@@ -223,21 +216,26 @@ def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, cap
     monkeypatch.setattr(experiments, "run_spec", record)
     with pytest.raises(_Stopped):
         main(["run", *argv])
-    assert [spec.filter for spec in specs] == [expected]
+    (spec,) = specs
+    return spec
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    ([], "cbf+escape"),
+    (["--no-escape"], "cbf"),
+    (["--filter", "mpc"], "mpc+escape"),
+    (["--filter", "zones", "--no-escape"], "zones"),
+    (["--filter", "cbf+escape"], "cbf+escape"),
+    (["--filter", "none"], "none"),              # nothing to wrap: the naive robot
+])
+def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, capsys, monkeypatch):
+    assert run_spec_of(argv, monkeypatch).filter == expected
     assert f"filter {expected}, up to" in capsys.readouterr().out
 
 
 def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, monkeypatch):
-    specs = []
-
-    def record(spec):
-        specs.append(spec)
-        raise _Stopped
-
-    monkeypatch.setattr(experiments, "run_spec", record)
-    with pytest.raises(_Stopped):
-        main(["run", "--filter", "mpc", "--mpc-reference", "cbf"])
-    assert dict(specs[0].filter_options) == {"reference": "cbf"} and specs[0].filter == "mpc+escape"
+    spec = run_spec_of(["--filter", "mpc", "--mpc-reference", "cbf"], monkeypatch)
+    assert dict(spec.filter_options) == {"reference": "cbf"} and spec.filter == "mpc+escape"
     assert main(["run", "--filter", "cbf", "--mpc-reference", "cbf"]) == 2
     assert "--mpc-reference applies to --filter mpc" in capsys.readouterr().err
     with pytest.raises(SystemExit):
@@ -246,16 +244,8 @@ def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, 
 
 
 def test_run_passes_the_mpc_lookahead_and_refuses_it_for_another_filter(capsys, monkeypatch):
-    specs = []
-
-    def record(spec):
-        specs.append(spec)
-        raise _Stopped
-
-    monkeypatch.setattr(experiments, "run_spec", record)
-    with pytest.raises(_Stopped):
-        main(["run", "--filter", "mpc", "--no-escape", "--mpc-lookahead", "0.1"])
-    assert dict(specs[0].filter_options) == {"lookahead": 0.1} and specs[0].filter == "mpc"
+    spec = run_spec_of(["--filter", "mpc", "--no-escape", "--mpc-lookahead", "0.1"], monkeypatch)
+    assert dict(spec.filter_options) == {"lookahead": 0.1} and spec.filter == "mpc"
     assert "(look-ahead 0.1 m)" in capsys.readouterr().out
     assert main(["run", "--filter", "cbf", "--mpc-lookahead", "0.1"]) == 2
     assert "--mpc-lookahead applies to --filter mpc" in capsys.readouterr().err

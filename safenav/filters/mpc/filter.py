@@ -478,7 +478,8 @@ class MPCSafetyFilter(SafetyFilter):
             reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
             ranges = np.hypot(points[:, 0], points[:, 1])
             keep = ranges <= reach + buffer + uncertainty
-            remembered = np.arange(points.shape[0])[keep] >= view.n_current
+            # Which of the kept points are remembered (only the look-ahead's control disk needs to know).
+            remembered = np.flatnonzero(keep) >= view.n_current if self.lookahead > 0.0 else None
             points, uncertainty, now, ranges = points[keep], uncertainty[keep], now[keep], ranges[keep]
         else:
             now = np.empty((0, offsets.shape[0]))
@@ -496,9 +497,9 @@ class MPCSafetyFilter(SafetyFilter):
         guaranteed = np.minimum(guaranteed, now)
         if self.lookahead > 0.0:
             # The control disk is planned like the body (it brakes and steers the plan early) but never
-            # verified: the guarantee is the body's. Through a passage it is dropped.
+            # verified: the guarantee is the body's. It ignores remembered points, and every point in a passage.
             guaranteed[:, self.n_body:] = -np.inf
-            ignored = remembered if not self.passage else np.ones(points.shape[0], dtype=bool)
+            ignored = slice(None) if self.passage else remembered
             planned[ignored, self.n_body:] = floor[ignored, self.n_body:] = 0.0
         lower, upper = self._bounds(velocity, view.frontier, hold)
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
