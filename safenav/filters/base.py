@@ -560,20 +560,50 @@ class SafetyFilter(abc.ABC):
     def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
         """Move the remembered points by the motion since the previous call."""
         odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
-        last_pose, self._last_pose = self._last_pose, odometry
-        last_velocity = self._last_velocity
+        if self.memory is not None and self._called and len(self.memory):
+            self.memory.carry(*self._motion(elapsed, velocity, odometry))
+        self._last_pose = odometry
         self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
+
+    def _motion(self, elapsed: float, velocity: np.ndarray | None, odometry: Pose2D | None
+                ) -> tuple[Pose2D, tuple[float, float]]:
+        """The base's motion since the previous call [m, m, rad] and the bound of its error (A5) [m, rad]:
+        by the odometry pose's change (exact), else between the two velocity measurements, else by the last
+        command (an instant base)."""
+        if odometry is not None and self._last_pose is not None:
+            return self._last_pose.inverse().compose(odometry), (0.0, 0.0)
+        if self._last_velocity is not None and velocity is not None and np.all(np.isfinite(velocity)):
+            return dead_reckoning(self._last_velocity, velocity, elapsed)
+        return unicycle_step(Pose2D(), float(self._last_command[0]), float(self._last_command[1]), elapsed), (0.0, 0.0)
+
+    def remembered_points(self, *, velocity: Any = None, pose: Pose2D | Sequence[float] | None = None,
+                          now: float | None = None) -> np.ndarray:
+        """The remembered points ``(M, 2)`` [m] in the base frame of a call made now with these arguments.
+
+        A call carries the memory into its own frame when it begins (by the odometry pose's change,
+        else the measured velocities, else the last command: :meth:`filter`); this says where that
+        call will find the points, without changing the filter. A wrapper that looks at the
+        memory before calling the filter (the escape) reads it here. Every remembered point,
+        including those the next scan will see again or contradict. Empty before the first call
+        and without a memory.
+
+        Args:
+            velocity: as :meth:`filter`'s.
+            pose: as :meth:`filter`'s.
+            now: as :meth:`filter`'s.
+
+        Raises:
+            InvalidCommand: ``velocity`` is not a pair of numbers.
+        """
         if self.memory is None or not self._called or len(self.memory) == 0:
-            return
-        if odometry is not None and last_pose is not None:
-            self.memory.carry(last_pose.inverse().compose(odometry))
-            return
-        if self._last_velocity is not None and last_velocity is not None:
-            # Between the two measurements, with the error bound of A5 (perception.dead_reckoning).
-            self.memory.carry(*dead_reckoning(last_velocity, self._last_velocity, elapsed))
-            return
-        # No odometry: the base is assumed to have executed the last command (an instant base).
-        self.memory.carry(unicycle_step(Pose2D(), float(self._last_command[0]), float(self._last_command[1]), elapsed))
+            return np.empty((0, 2))
+        current = None if velocity is None else as_command(velocity, "velocity")
+        elapsed = self.dt
+        if now is not None and self._last_time is not None:
+            since = _checks.number("now", now) - self._last_time
+            elapsed = since if since >= 0.0 else elapsed
+        odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
+        return self.memory.moved(self._motion(elapsed, current, odometry)[0])
 
     def _screened(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], current: np.ndarray | None,
                   scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:

@@ -6,10 +6,12 @@ through an obstacle is stopped, not deflected, when the geometry is symmetric (R
 stall as :attr:`~safenav.filters.FilterResult.deadlock`; :class:`Escape` then replaces the
 nominal by an escape command until the nominal's way is clear again:
 
-1. **Start** when the wrapped filter reports a deadlock, or when it has held back a clear forward
-   request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it let through)
-   for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can swing the
-   heading to and fro in front of a wall without ever reporting a stall).
+1. **Start** at the call after the wrapped filter reports a deadlock, or after it has held back a
+   clear forward request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it
+   let through) for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can
+   swing the heading to and fro in front of a wall without ever reporting a stall). The wrapped
+   filter is called once per call, with the nominal or with the escape's command: a call is one
+   period to it (it carries its memory, shifts its plan and counts the stall).
 2. **Side, once per deadlock.** Round the blocking obstacle (the point behind the filter's binding
    row, else the nearest point ahead) towards the opening nearest the way the nominal was heading
    (the chord of its arc over one second): the nearest (in bearing) place where two
@@ -35,9 +37,10 @@ nominal by an escape command until the nominal's way is clear again:
    the CBF's control point ahead of the body swings sideways in a turn, and between two
    obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
-   the robot was heading when the deadlock began, tracked by integrating the commands, as in a bug
-   algorithm), or in the direction of the nominal's own arc over one second when it drives forward;
-   or after ``max_time`` (the next deadlock then tries the other side). Clear means for
+   the robot was heading when the deadlock began, tracked by the odometry pose when the caller
+   gives one, else by integrating the commands sent, as in a bug algorithm), or in the direction
+   of the nominal's own arc over one second when it drives forward; or after ``max_time`` (the
+   next deadlock then tries the other side). Clear means for
    ``clear_distance``, or, when the corridor passes a place where a deadlock began (within twice
    ``clear_half_width`` of its centre line; the last :data:`SPOTS` such places within
    :data:`SPOT_RANGE` are remembered, dead-reckoned by the commands or taken from the odometry pose
@@ -47,11 +50,13 @@ nominal by an escape command until the nominal's way is clear again:
    nominal drives straight back in. The filter never learns the goal; only where it got stuck.
 
 A corridor is **clear** when the body fits along it with the wrapped filter's margin: no current
-or remembered point closer to its centre line than ``R + margin + lookahead`` (the radius of the
-robot's disk, the filter's margin, and the look-ahead of a filter that keeps a control point
-ahead of the body that far from every point, as the CBF does: its straight path needs exactly
-that much room), with some lidar looking at least partly along it. No further tolerance: the
-escape decides progress only, never safety (its commands go through the filter), and a corridor
+or remembered point (the wrapped filter's memory where this call finds it,
+:meth:`~safenav.filters.SafetyFilter.remembered_points`) closer to its centre line than
+``R + margin + lookahead`` (the radius of the robot's disk, the filter's margin, and the
+look-ahead of a filter that keeps a control point ahead of the body that far from every point,
+as the CBF does: its straight path needs exactly that much room), with some lidar looking at
+least partly along it. No further tolerance: the escape decides progress only, never safety (its
+commands go through the filter), and a corridor
 wider than the filter needs hides the doors the filter would let the body through.
 
 Every escape command goes through the wrapped filter exactly like a nominal would, so the
@@ -169,7 +174,7 @@ class Escape:
         self._elapsed = 0.0
         self._backing = 0.0
         self._last_side = 0
-        self._turned = 0.0      # heading change since the deadlock began [rad]
+        self._start_yaw = 0.0   # the heading of _odometry when the deadlock began [rad]
         self._since = math.inf  # time since the last escape ended [s]
         self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
         self._gap: float | None = None   # heading through the gap being driven, since the deadlock began [rad]
@@ -178,6 +183,8 @@ class Escape:
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
         self._odometry = Pose2D()        # the base's pose since the reset (odometry, else the commands) [m, m, rad]
         self._spots: list[np.ndarray] = []   # where deadlocks began, in the frame of _odometry [m]
+        self._pending = False   # a deadlock was reported at the last call: the escape starts at this one
+        self._blocking: tuple[float, float] | None = None   # its blocking point, moved by the command sent [m]
 
     @property
     def robot(self) -> RobotSpec:
@@ -201,16 +208,21 @@ class Escape:
         """Whether the escape has replaced the nominal."""
         return self._side != 0
 
+    @property
+    def _turned(self) -> float:
+        """The heading change since the deadlock began [rad] (odometry's when the caller gives the pose)."""
+        return float(wrap_angle(self._odometry.yaw - self._start_yaw))
+
     def __repr__(self) -> str:
         return f"Escape({self.inner!r})"
 
     def reset(self) -> None:
         """Forget the escape and reset the wrapped filter."""
         self.inner.reset()
-        self._side, self._elapsed, self._backing, self._last_side, self._turned = 0, 0.0, 0.0, 0, 0.0
+        self._side, self._elapsed, self._backing, self._last_side, self._start_yaw = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled = math.inf, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
-        self._odometry, self._spots = Pose2D(), []
+        self._odometry, self._spots, self._pending, self._blocking = Pose2D(), [], False, None
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
@@ -222,10 +234,15 @@ class Escape:
         if kwargs.get("pose") is not None:
             self._odometry = Pose2D(*(float(value) for value in kwargs["pose"]))
         points = np.vstack([s.points() for s in scans])
-        memory = self.inner.memory
-        known = points if memory is None or len(memory) == 0 else np.vstack((points, memory.points))
+        # The wrapped filter carries its memory into this call's frame only when it is called: read it there now.
+        memory = self.inner.remembered_points(velocity=kwargs.get("velocity"), pose=kwargs.get("pose"),
+                                              now=kwargs.get("now"))
+        known = np.vstack((points, memory)) if memory.shape[0] else points
         if self._side and self._should_leave(nominal, known, scans):
             self._last_side, self._side, self._since, self._gap = self._side, 0, 0.0, None
+        pending, self._pending = self._pending, False
+        if not self._side and pending and np.all(np.isfinite(nominal)):
+            self._start(nominal, scans, points, self._blocking)
         if not self._side:
             self.inner.passage = False
             result = self.inner.filter(nominal, scans, **kwargs)
@@ -234,10 +251,14 @@ class Escape:
             self._since += held
             forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
             self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
-            stalled = self._held >= self.inner.deadlock_time - 1e-9
-            if (result.deadlock is None and not stalled) or not np.all(np.isfinite(nominal)):
-                return result
-            self._start(nominal, scans, points, None if result.reason is None else result.reason.point)
+            if result.deadlock is not None or self._held >= self.inner.deadlock_time - 1e-9:
+                # The escape starts at the next call: the filter is called once per period (a second call
+                # now would carry its memory, shift its plan and count the stall a second time).
+                point = None if result.reason is None else result.reason.point
+                moved = None if point is None else unicycle_step(Pose2D(), float(result.u[0]), float(result.u[1]),
+                                                                 held).to_local(np.array([point]))[0]
+                self._pending, self._blocking = True, None if moved is None else (float(moved[0]), float(moved[1]))
+            return result
         command = self._command(points, known, scans)
         # Through a gap the body fits, and turning in place, the filter uses its narrow settings (the CBF's
         # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
@@ -247,7 +268,6 @@ class Escape:
         held = result.period if math.isfinite(result.period) else self.dt
         self._move(result.u, held)
         self._elapsed += held
-        self._turned = float(wrap_angle(self._turned + result.u[1] * held))
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
         self._travel(abs(float(result.u[0])) * held)
@@ -290,7 +310,8 @@ class Escape:
         if self._last_side and self._since <= self.config.side_memory:
             # Still round the same obstacle: keep the side, unless that escape timed out.
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
-        self._side, self._elapsed, self._backing, self._turned, self._stalled = side, 0.0, 0.0, 0.0, 0.0
+        self._side, self._elapsed, self._backing, self._stalled = side, 0.0, 0.0, 0.0
+        self._start_yaw = self._odometry.yaw
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
 

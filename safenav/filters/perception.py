@@ -310,6 +310,11 @@ class PointMemory:
         """The remembered points in the current base frame ``(M, 2)`` [m]."""
         return self._frame.to_local(self._points) if self._points.shape[0] else self._points
 
+    def moved(self, motion: Pose2D) -> np.ndarray:
+        """The remembered points ``(M, 2)`` [m] in a base frame at ``motion`` in the current one (where
+        :meth:`carry` with ``motion`` would put them), without carrying them."""
+        return self._frame.compose(motion).to_local(self._points) if self._points.shape[0] else self._points
+
     @property
     def uncertainty(self) -> np.ndarray:
         """Their position uncertainty ``(M,)`` [m]."""

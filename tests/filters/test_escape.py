@@ -15,8 +15,9 @@ from safenav import InvalidConfig, preset
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, ZonesFilter, check_filter
 from safenav.filters.base import progress
 from safenav.filters.escape import Escape, EscapeConfig
+from safenav.geometry import Pose2D, unicycle_step
 from safenav.scenarios import door_width
-from safenav.synthetic import Circle, Scene, synthetic_scan, wall
+from safenav.synthetic import Circle, Scene, Segment, synthetic_scan, wall
 
 WALL = ((1.0, -1.5, 1.0, 1.5),)     # 3 m wide, 1 m ahead; the goal 3 m ahead, straight behind it
 
@@ -307,3 +308,67 @@ def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlock
     half = 0.5 * (4.0 * preset(robot).radius + 0.4)
     handed_back = [row["pose"] for before, row in itertools.pairwise(log) if before["escape"] and not row["escape"]]
     assert all(x > 2.0 or abs(y) > half for x, y, _ in handed_back), handed_back
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_sees_remembered_points_where_they_are_now(filter_name):
+    """The escape's boundary following and its hand-back look at the remembered points as well as the scan;
+    they must be in the current base frame (the wrapped filter carries its memory only when it is called, so
+    the escape reads :meth:`~safenav.filters.SafetyFilter.remembered_points`; before, it read the memory one
+    period behind, off by the last period's motion). With the odometry pose given, every point it uses lies
+    on the world's obstacles."""
+    robot, dt = preset("m2wr"), 0.05       # a 180-degree lidar: the side of the wall it follows is remembered
+    scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
+    inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
+    escape = Escape(inner)
+    used: list[tuple[Pose2D, np.ndarray, int]] = []
+    pose, velocity = Pose2D(), np.zeros(2)
+    command = escape._command
+
+    def spy(points, known, scans):
+        used.append((pose, known.copy(), points.shape[0]))
+        return command(points, known, scans)
+
+    escape._command = spy
+    for _ in range(160):
+        goal = pose.to_local(np.array([[3.0, 0.0]]))[0]
+        nominal = (min(0.5 * goal[0], robot.v_max), float(np.clip(2.0 * math.atan2(goal[1], goal[0]), -1.0, 1.0)))
+        result = escape.filter(nominal, synthetic_scan(robot, scene, pose), velocity=velocity, pose=pose)
+        velocity = np.array(result.u)
+        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+    remembered = [(at, known[current:]) for at, known, current in used if known.shape[0] > current]
+    assert len(remembered) > 20, len(used)       # it escaped, with points out of the lidar's view
+    for at, points in remembered:
+        world = at.to_parent(points)
+        off = max(scene.clearance(tuple(point), 0.0) for point in world)
+        assert off < 1e-6, (at, off)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_calls_the_filter_once_per_period_also_when_a_deadlock_begins(filter_name):
+    """A filter call is one period: it carries the memory by the motion since the previous call, shifts the
+    MPC's plan and counts the stall. Calling it twice in one period (the nominal, then the escape's first
+    command, as the escape did when the deadlock began) carried the memory twice, by the measured velocity
+    when no pose or clock is given: a base turning in place while stalled had its remembered points turned
+    one period too far. The escape starts at the call after the deadlock is reported."""
+    robot, dt = preset("m2wr"), 0.05
+    scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
+    inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
+    escape = Escape(inner)
+    calls = []
+    wrapped = inner.filter
+
+    def counted(*args, **kwargs):
+        calls.append(len(steps))
+        return wrapped(*args, **kwargs)
+
+    inner.filter = counted
+    steps, pose, velocity, escaped = [], Pose2D(), np.zeros(2), 0
+    for step in range(120):
+        steps.append(step)
+        result = escape.filter((robot.v_max, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
+        escaped += result.escape is not None
+        velocity = np.array(result.u)
+        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+    assert escaped > 10
+    assert sorted(calls) == list(range(1, 121)), [c for c in set(calls) if calls.count(c) > 1]

@@ -16,7 +16,9 @@ from hypothesis import strategies as st
 
 from safenav import InvalidCommand, InvalidCommandType, InvalidScan, InvalidScanType, LaserScan, SafeNavError, preset
 from safenav.filters import BRAKING_STATUSES, CBFSafetyFilter, FilterResult, FilterStatus
-from safenav.synthetic import Scene, synthetic_scan, wall
+from safenav.filters.perception import dead_reckoning
+from safenav.geometry import Pose2D, unicycle_step
+from safenav.synthetic import Circle, Scene, synthetic_scan, wall
 
 DT = 0.05
 
@@ -282,3 +284,46 @@ def test_mpc_never_raises_never_returns_nan_on_hostile_readings(case, u_nom, vel
     assert (result.status in BRAKING_STATUSES) == result.braked
     if result.status is not FilterStatus.OK:
         assert result.message
+
+
+# ---------------------------------------------------------------------- the memory where the next call finds it
+
+
+def _pillar_scan(robot, pose, stamp):
+    return synthetic_scan(robot, Scene.of(Circle((1.0, 0.6), 0.2), wall(2.0)), pose, stamp=stamp)
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize("carry", ["pose", "velocity", "command"])
+def test_remembered_points_are_the_memory_moved_as_the_next_call_will_move_it(make, carry):
+    """``remembered_points`` gives the memory in the frame of a call made with the same arguments, without
+    changing the filter: by the odometry pose's change, by the measured velocities' trapezoid, or by the last
+    command (A5), whichever the call would use."""
+    robot = preset("m2wr")      # a 180-degree lidar: the memory keeps what it no longer sees
+    first, second, elapsed = Pose2D(0.0, 0.0, 0.0), Pose2D(0.03, 0.004, 0.15), 0.07
+    start, end = np.array([0.2, 1.0]), np.array([0.25, 0.8])
+    before, after = {"pose": ({"pose": first}, {"pose": second}), "velocity": ({"velocity": start}, {"velocity": end}),
+                     "command": ({}, {})}[carry]
+    safety, twin = make(robot), make(robot)
+    for each in (safety, twin):
+        result = each.filter((0.3, 1.0), _pillar_scan(robot, first, 1.0), now=1.0, **before)
+    motion = {"pose": second, "velocity": dead_reckoning(start, end, elapsed)[0],
+              "command": unicycle_step(Pose2D(), float(result.u[0]), float(result.u[1]), elapsed)}[carry]
+    remembered = safety.remembered_points(now=1.0 + elapsed, **after)
+    assert remembered.shape[0] > 100
+    np.testing.assert_allclose(remembered, motion.to_local(_pillar_scan(robot, first, 1.0).points()), atol=1e-9)
+    # Asking changes nothing: the same call on the twin that was not asked gives the same answer.
+    scan = _pillar_scan(robot, second, 1.0 + elapsed)
+    asked = safety.filter((0.3, 1.0), scan, now=1.0 + elapsed, **after)
+    np.testing.assert_array_equal(asked.u, twin.filter((0.3, 1.0), scan, now=1.0 + elapsed, **after).u)
+    later = {"now": 1.0 + 2.0 * elapsed, **after}
+    np.testing.assert_array_equal(safety.remembered_points(**later), twin.remembered_points(**later))
+
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_remembered_points_before_the_first_call_and_without_a_memory_are_empty(make):
+    robot = preset("m2wr")
+    assert make(robot).remembered_points().shape == (0, 2)
+    forgetful = CBFSafetyFilter(robot, DT, memory_capacity=0)
+    forgetful.filter((0.3, 0.0), _pillar_scan(robot, Pose2D(), None))
+    assert forgetful.remembered_points(velocity=(0.3, 0.0)).shape == (0, 2)
