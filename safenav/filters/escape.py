@@ -56,8 +56,8 @@ or remembered point (the wrapped filter's memory where this call finds it,
 look-ahead of a filter that keeps a control point ahead of the body that far from every point,
 as the CBF does: its straight path needs exactly that much room), with some lidar looking at
 least partly along it. No further tolerance: the escape decides progress only, never safety (its
-commands go through the filter), and a corridor
-wider than the filter needs hides the doors the filter would let the body through.
+commands go through the filter), and a corridor wider than the filter needs hides the doors the
+filter would let the body through.
 
 Every escape command goes through the wrapped filter exactly like a nominal would, so the
 safety guarantee is the wrapped filter's, untouched; only progress depends on the escape.
