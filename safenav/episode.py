@@ -26,8 +26,8 @@ is what the filter reports as :attr:`~safenav.filters.FilterResult.deadlock`, ex
 blip of progress shorter than :data:`RESUME_TIME` does not end a deadlock here. With an
 escape wrapper (:class:`~safenav.filters.Escape`) a period in which the escape drives is not a
 stall while the escape works, but every period of an escape that fails (the nominal still
-stalls when it hands back, or it is still escaping when the episode ends short of the goal)
-is deadlocked, joined to the stall that started it.
+stalls :data:`RESUME_TIME` after it hands back, or it is still escaping when the episode ends
+short of the goal) is deadlocked, joined to the stall that started it.
 """
 
 from __future__ import annotations
@@ -55,7 +55,8 @@ __all__ = ["EpisodeConfig", "EpisodeMetrics", "EpisodeResult", "Liveness", "Traj
            "stalled"]
 
 RESUME_TIME = 0.25
-"""Progress along the nominal must last this long to end a deadlock [s] (see :func:`liveness`)."""
+"""Progress along the nominal must last this long to end a deadlock, and must resume within it after an
+escape for the escape to count as a success [s] (see :func:`liveness`)."""
 
 REVERSAL_DEADBAND = 1e-3
 """Commanded speeds within this of zero [m/s] neither start nor end a sign of ``v`` (chatter count)."""
@@ -185,8 +186,8 @@ class Liveness:
         deadlock_time: total length of the deadlocks of at least the minimum length [s].
         longest_deadlock: the longest deadlock, whatever its length [s].
         escapes_started: escapes started (runs of periods in which an escape drove).
-        escapes_succeeded: escapes whose first period after handing back made progress along
-            the nominal, or during which the goal was reached.
+        escapes_succeeded: escapes after which progress along the nominal resumed within
+            :data:`RESUME_TIME` of handing back, or during which the goal was reached.
         escape_time: time during which an escape drove [s].
         omega_chatter: mean ``|omega_k - omega_(k-1)| / dt`` of the commands [rad/s^2].
         v_reversals: sign changes of the commanded ``v`` per second [1/s].
@@ -236,14 +237,27 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
+def _resumes(stall: np.ndarray, escaping: np.ndarray, stop: int, ramp: int) -> bool:
+    """Whether progress resumes after the escape that ends before period ``stop``: a period that does not
+    stall, before another escape and at most ``ramp`` periods after it."""
+    for index in range(stop, min(stop + ramp + 1, len(stall))):
+        if escaping[index]:
+            return False
+        if not stall[index]:
+            return True
+    return False
+
+
 def liveness(nominal: np.ndarray, commands: np.ndarray, escaping: np.ndarray, dt: float, scale: np.ndarray, *,
              goal_reached: bool = False, min_deadlock: float = 1.5, resume_time: float = RESUME_TIME) -> Liveness:
     """Deadlocks, escapes and chatter of one episode, from its per-period commands.
 
     * A period *stalls* by :func:`stalled` (the filters' own test).
     * An *escape* is a run of periods in which an escape wrapper drove (``escaping``). It
-      *succeeds* when the first period after it does not stall (progress along the nominal
-      resumed), or when it was still running as the episode ended at the goal.
+      *succeeds* when progress along the nominal resumes right after it: a period that does not
+      stall comes within ``resume_time`` of its end, before another escape (the base may need
+      a period or two at its acceleration limits to turn from the escape's heading towards
+      the nominal's); or when it was still running as the episode ended at the goal.
     * A period is *deadlocked* when it stalls and no escape drives, or when it belongs to an
       escape that failed; so is every period of a gap shorter than ``resume_time`` between two
       deadlocked ones (progress has to last to end a deadlock: a nominal that flips between
@@ -271,12 +285,12 @@ def liveness(nominal: np.ndarray, commands: np.ndarray, escaping: np.ndarray, dt
     deadlocked = stall & ~escaping
     escapes = _runs(escaping)
     succeeded = 0
+    shortest_resume = round(resume_time / dt)
     for start, stop in escapes:
-        if (stop < steps and not stall[stop]) or (stop == steps and goal_reached):
+        if _resumes(stall, escaping, stop, shortest_resume) or (stop == steps and goal_reached):
             succeeded += 1
         else:
             deadlocked[start:stop] = True
-    shortest_resume = round(resume_time / dt)
     for start, stop in _runs(~deadlocked):
         if start > 0 and stop < steps and stop - start < shortest_resume:
             deadlocked[start:stop] = True     # a blip of progress does not end a deadlock

@@ -196,6 +196,23 @@ def test_an_escape_succeeds_when_the_nominal_makes_progress_right_after_it_and_e
     assert result.deadlock_time == pytest.approx(1.5 + 7.0)
 
 
+def test_an_escape_succeeds_when_progress_resumes_as_fast_as_the_base_can_turn_after_it():
+    """The escape hands back heading away from where the nominal now points (a turn in place the other way):
+    the base needs a period or two at its acceleration limits before the command keeps a tenth of the
+    nominal's progress. That is progress resuming, not a failed escape (before, the escape's 6.7 s counted as
+    deadlocked: goal_puzzlebot, CBF + escape, seed 9, which then reached its goal); a stall that outlasts
+    ``RESUME_TIME`` after the escape is a failure as before."""
+    dt, back = 0.05, (0.0, -ROSBOT_LIMITS[1])
+    ramp = round(RESUME_TIME / dt)                     # stalled periods right after the escape, at most
+    for ramping, succeeds in ((1, True), (ramp, True), (ramp + 1, False)):
+        nominal, command, escaping = _sequence(
+            (30, GO, BLOCKED, False), (130, GO, TURN, True),
+            (ramping, back, (0.0, -0.05 * ROSBOT_LIMITS[1]), False), (20, back, back, False))
+        result = liveness(nominal, command, escaping, dt, ROSBOT_LIMITS)
+        assert result.escapes_succeeded == int(succeeds), ramping
+        assert result.longest_deadlock == pytest.approx(1.5 if succeeds else (30 + 130 + ramping) * dt), ramping
+
+
 def test_an_escape_cut_off_by_the_goal_succeeds_and_one_cut_off_by_the_time_limit_fails():
     nominal, command, escaping = _sequence((30, GO, BLOCKED, False), (50, GO, TURN, True))
     reached = liveness(nominal, command, escaping, 0.05, ROSBOT_LIMITS, goal_reached=True)
