@@ -623,9 +623,7 @@ class SafetyFilter(abc.ABC):
             return self._brake(nominal, current, FilterStatus.NO_DATA, "no_data",
                                f"none of the {beams} beams is informative (all NaN or out of range)",
                                warnings=warnings)
-        if self.compensate_latency and current is not None:
-            scans = tuple(self.current_frame(scan, current, age) if age is not None and age > 0.0 else scan
-                          for scan, age in zip(scans, ages, strict=True))
+        scans = self._compensated(scans, current, ages)
         held = self.dt
         late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
         if late:
@@ -645,6 +643,34 @@ class SafetyFilter(abc.ABC):
             extras.update(status=FilterStatus.LATE, reason=late_reason if result.reason is None else result.reason,
                           message=str(late_reason) + (f"; {result.message}" if result.message else ""))
         return _replace(result, **extras)
+
+    def _compensated(self, scans: tuple[LaserScan, ...], velocity: np.ndarray | None,
+                     ages: Sequence[float | None]) -> tuple[LaserScan, ...]:
+        """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``)."""
+        if not self.compensate_latency or velocity is None:
+            return scans
+        return tuple(self.current_frame(scan, velocity, age) if age is not None and age > 0.0 else scan
+                     for scan, age in zip(scans, ages, strict=True))
+
+    def current_scans(self, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
+                      scan_age: float | Sequence[float] | None = None, now: float | None = None
+                      ) -> tuple[LaserScan, ...]:
+        """The scans as a call with these arguments uses them: in the base frame, and with ``velocity``
+        and a known age moved into the current base frame (:meth:`current_frame`, when
+        ``compensate_latency``). Changes nothing; a wrapper that looks at the scans before calling the
+        filter (the escape) reads them here. Scans the call would reject as stale, and a non-finite
+        velocity, are returned unmoved.
+
+        Raises:
+            InvalidCommand: ``velocity`` is not a pair of numbers.
+            InvalidScanType: ``scan`` is not a LaserScan (or a sequence of them), or ``scan_age`` is bad.
+        """
+        scans = self._match(as_scans(scan))
+        current = None if velocity is None else as_command(velocity, "velocity")
+        if current is None or not np.all(np.isfinite(current)):
+            return scans
+        ages, stale = self._ages(scans, scan_age, now)
+        return scans if stale else self._compensated(scans, current, ages)
 
     def _ages(self, scans: tuple[LaserScan, ...], scan_age: Any, now: float | None
               ) -> tuple[list[float | None], str]:

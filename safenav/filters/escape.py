@@ -50,7 +50,8 @@ nominal by an escape command until the nominal's way is clear again:
    nominal drives straight back in. The filter never learns the goal; only where it got stuck.
 
 A corridor is **clear** when the body fits along it with the wrapped filter's margin: no current
-or remembered point (the wrapped filter's memory where this call finds it,
+or remembered point (the escape looks at the scans and the memory where the wrapped filter will see
+them in this call: :meth:`~safenav.filters.SafetyFilter.current_scans`,
 :meth:`~safenav.filters.SafetyFilter.remembered_points`) closer to its centre line than
 ``R + margin + lookahead`` (the radius of the robot's disk, the filter's margin, and the
 look-ahead of a filter that keeps a control point ahead of the body that far from every point,
@@ -76,7 +77,7 @@ from typing import Any
 import numpy as np
 
 from safenav import _checks
-from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, as_scans, progress
+from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, progress
 from safenav.geometry import Pose2D, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
@@ -230,7 +231,9 @@ class Escape:
     def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
         nominal = as_command(u_nom, "u_nom")
-        scans = self.inner._match(as_scans(scan))
+        # The scans where the wrapped filter will see them: in the current base frame when their age is known.
+        scans = self.inner.current_scans(scan, velocity=kwargs.get("velocity"), scan_age=kwargs.get("scan_age"),
+                                         now=kwargs.get("now"))
         if kwargs.get("pose") is not None:
             self._odometry = Pose2D(*(float(value) for value in kwargs["pose"]))
         points = np.vstack([s.points() for s in scans])
@@ -245,7 +248,7 @@ class Escape:
             self._start(nominal, scans, points, self._blocking)
         if not self._side:
             self.inner.passage = False
-            result = self.inner.filter(nominal, scans, **kwargs)
+            result = self.inner.filter(nominal, scan, **kwargs)
             held = result.period if math.isfinite(result.period) else self.dt
             self._move(result.u, held)
             self._since += held
@@ -264,7 +267,7 @@ class Escape:
         # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
         # place, and between two obstacles it can forbid both turns while the body itself moves nowhere).
         self.inner.passage = self._gap is not None or (command[0] == 0.0 and command[1] != 0.0)
-        result = self.inner.filter(command, scans, **kwargs)
+        result = self.inner.filter(command, scan, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._move(result.u, held)
         self._elapsed += held

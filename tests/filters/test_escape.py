@@ -310,19 +310,17 @@ def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlock
     assert all(x > 2.0 or abs(y) > half for x, y, _ in handed_back), handed_back
 
 
-@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
-def test_the_escape_sees_remembered_points_where_they_are_now(filter_name):
-    """The escape's boundary following and its hand-back look at the remembered points as well as the scan;
-    they must be in the current base frame (the wrapped filter carries its memory only when it is called, so
-    the escape reads :meth:`~safenav.filters.SafetyFilter.remembered_points`; before, it read the memory one
-    period behind, off by the last period's motion). With the odometry pose given, every point it uses lies
-    on the world's obstacles."""
+def _escape_points(filter_name: str, latency: bool) -> list[tuple[Pose2D, np.ndarray, int]]:
+    """Drive the m2wr with the escape towards a goal behind a wall, the odometry pose given (and with
+    ``latency``, each scan one period old, its age and the velocity given); every ``known`` array the escape's
+    command used, with the pose of that call and how many of its points are current."""
     robot, dt = preset("m2wr"), 0.05       # a 180-degree lidar: the side of the wall it follows is remembered
     scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
     inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
     escape = Escape(inner)
     used: list[tuple[Pose2D, np.ndarray, int]] = []
-    pose, velocity = Pose2D(), np.zeros(2)
+    pose = previous = Pose2D()
+    velocity = np.zeros(2)
     command = escape._command
 
     def spy(points, known, scans):
@@ -333,14 +331,44 @@ def test_the_escape_sees_remembered_points_where_they_are_now(filter_name):
     for _ in range(160):
         goal = pose.to_local(np.array([[3.0, 0.0]]))[0]
         nominal = (min(0.5 * goal[0], robot.v_max), float(np.clip(2.0 * math.atan2(goal[1], goal[0]), -1.0, 1.0)))
-        result = escape.filter(nominal, synthetic_scan(robot, scene, pose), velocity=velocity, pose=pose)
+        if latency:     # the base held `velocity` since the scan was taken: the filters' current_frame is exact
+            result = escape.filter(nominal, synthetic_scan(robot, scene, previous), velocity=velocity, pose=pose,
+                                   scan_age=dt)
+        else:
+            result = escape.filter(nominal, synthetic_scan(robot, scene, pose), velocity=velocity, pose=pose)
         velocity = np.array(result.u)
-        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+        previous, pose = pose, unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+    return used
+
+
+def _off_the_wall(used: list[tuple[Pose2D, np.ndarray, int]], first: int | None) -> list[tuple[Pose2D, float]]:
+    scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
+    return [(at, max(scene.clearance(tuple(point), 0.0) for point in at.to_parent(known[first:])))
+            for at, known, current in used if known[first if first is not None else current:].shape[0]]
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_sees_remembered_points_where_they_are_now(filter_name):
+    """The escape's boundary following and its hand-back look at the remembered points as well as the scan;
+    they must be in the current base frame (the wrapped filter carries its memory only when it is called, so
+    the escape reads :meth:`~safenav.filters.SafetyFilter.remembered_points`; before, it read the memory one
+    period behind, off by the last period's motion). With the odometry pose given, every point it uses lies
+    on the world's obstacles."""
+    used = _escape_points(filter_name, latency=False)
     remembered = [(at, known[current:]) for at, known, current in used if known.shape[0] > current]
     assert len(remembered) > 20, len(used)       # it escaped, with points out of the lidar's view
-    for at, points in remembered:
-        world = at.to_parent(points)
-        off = max(scene.clearance(tuple(point), 0.0) for point in world)
+    for at, off in _off_the_wall([(at, known, current) for at, known, current in used], None):
+        assert off < 1e-6, (at, off)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_the_escape_sees_an_old_scan_where_the_filter_does(filter_name):
+    """With ``scan_age`` and the velocity, the wrapped filter moves each scan into the current base frame
+    (``current_frame``); the escape looks at the same points (before, at the scan's own frame: off by the motion
+    since the scan, while the remembered points were in the current frame). As the ROS nodes call it."""
+    used = _escape_points(filter_name, latency=True)
+    assert len(used) > 20
+    for at, off in _off_the_wall(used, 0):
         assert off < 1e-6, (at, off)
 
 
