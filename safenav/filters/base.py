@@ -594,13 +594,15 @@ class SafetyFilter(abc.ABC):
 
         Raises:
             InvalidCommand: ``velocity`` is not a pair of numbers.
+            InvalidConfig: ``now`` is not a number.
         """
+        current = None if velocity is None else as_command(velocity, "velocity")
+        now = None if now is None else _checks.number("now", now)
         if self.memory is None or not self._called or len(self.memory) == 0:
             return np.empty((0, 2))
-        current = None if velocity is None else as_command(velocity, "velocity")
         elapsed = self.dt
         if now is not None and self._last_time is not None:
-            since = _checks.number("now", now) - self._last_time
+            since = now - self._last_time
             elapsed = since if since >= 0.0 else elapsed
         odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
         return self.memory.moved(self._motion(elapsed, current, odometry)[0])

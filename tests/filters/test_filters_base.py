@@ -327,3 +327,28 @@ def test_remembered_points_before_the_first_call_and_without_a_memory_are_empty(
     forgetful = CBFSafetyFilter(robot, DT, memory_capacity=0)
     forgetful.filter((0.3, 0.0), _pillar_scan(robot, Pose2D(), None))
     assert forgetful.remembered_points(velocity=(0.3, 0.0)).shape == (0, 2)
+
+
+@pytest.mark.parametrize("make", FILTERS)
+def test_the_memory_and_scan_views_reject_what_filter_rejects_with_the_same_errors(make):
+    """``remembered_points`` and ``current_scans`` take ``filter``'s arguments and raise its documented errors,
+    naming the bad value, before anything is read."""
+    robot = preset("m2wr")
+    safety = make(robot)
+    scan = _pillar_scan(robot, Pose2D(), None)
+    for view in (safety.remembered_points, lambda **kw: safety.current_scans(scan, **kw)):
+        with pytest.raises(InvalidCommand, match="velocity"):
+            view(velocity="fast")
+        with pytest.raises(InvalidCommand, match=r"shape \(2,\)"):
+            view(velocity=(0.1, 0.0, 0.0))
+    with pytest.raises(SafeNavError, match="now must be a finite number, got 'soon'"):
+        safety.remembered_points(now="soon")
+    with pytest.raises(InvalidScanType, match="LaserScan"):
+        safety.current_scans("scan")
+    with pytest.raises(InvalidScanType, match="one age per scan"):
+        safety.current_scans(scan, velocity=(0.1, 0.0), scan_age=[0.1, 0.2])
+    # A stale scan, or a non-finite velocity, is handed back as it is (the call itself brakes for it).
+    assert safety.current_scans(scan, velocity=(0.1, 0.0), scan_age=5.0)[0] is scan
+    assert safety.current_scans(scan, velocity=(math.nan, 0.0), scan_age=0.1)[0] is scan
+    moved = safety.current_scans(scan, velocity=(0.5, 0.0), scan_age=0.1)[0]
+    np.testing.assert_allclose(moved.points(), scan.points() - (0.05, 0.0), atol=1e-9)
