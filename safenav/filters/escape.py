@@ -231,21 +231,23 @@ class Escape:
     def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
         nominal = as_command(u_nom, "u_nom")
-        # The scans where the wrapped filter will see them: in the current base frame when their age is known.
-        scans = self.inner.current_scans(scan, velocity=kwargs.get("velocity"), scan_age=kwargs.get("scan_age"),
-                                         now=kwargs.get("now"))
         if kwargs.get("pose") is not None:
             self._odometry = Pose2D(*(float(value) for value in kwargs["pose"]))
-        points = np.vstack([s.points() for s in scans])
-        # The wrapped filter carries its memory into this call's frame only when it is called: read it there now.
-        memory = self.inner.remembered_points(velocity=kwargs.get("velocity"), pose=kwargs.get("pose"),
-                                              now=kwargs.get("now"))
-        known = np.vstack((points, memory)) if memory.shape[0] else points
-        if self._side and self._should_leave(nominal, known, scans):
-            self._last_side, self._side, self._since, self._gap = self._side, 0, 0.0, None
         pending, self._pending = self._pending, False
-        if not self._side and pending and np.all(np.isfinite(nominal)):
-            self._start(nominal, scans, points, self._blocking)
+        starting = pending and bool(np.all(np.isfinite(nominal)))
+        if self._side or starting:
+            # The scans and the memory where the wrapped filter will see them in this call (it moves an old scan
+            # into the current base frame, and carries its memory there, only when it is called).
+            scans = self.inner.current_scans(scan, velocity=kwargs.get("velocity"), scan_age=kwargs.get("scan_age"),
+                                             now=kwargs.get("now"))
+            points = np.vstack([s.points() for s in scans])
+            memory = self.inner.remembered_points(velocity=kwargs.get("velocity"), pose=kwargs.get("pose"),
+                                                  now=kwargs.get("now"))
+            known = np.vstack((points, memory)) if memory.shape[0] else points
+            if self._side and self._should_leave(nominal, known, scans):
+                self._last_side, self._side, self._since, self._gap = self._side, 0, 0.0, None
+            if not self._side and starting:
+                self._start(nominal, scans, points, self._blocking)
         if not self._side:
             self.inner.passage = False
             result = self.inner.filter(nominal, scan, **kwargs)
