@@ -46,6 +46,7 @@ from benchmarks.common import names, run_cli, run_sweep, sweep_parser, where, wr
 from safenav._checks import argument_type, integer, number, positive, writable_file
 from safenav.experiments import (
     EpisodeOutcome,
+    EpisodeSpec,
     cell_records,
     episode_specs,
     matrix,
@@ -103,6 +104,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
                         help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; 0: none, the default "
                              "filter)")
+    parser.add_argument("--cbf-smoothing", metavar="S", type=argument_type(number, low=0.0, high=100.0),
+                        default=0.0, help="the CBF rows' penalty on the change from the previous command, relative "
+                                          "to the nominal's (CBFConfig.smoothing; 0: none, the default filter)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -135,18 +139,16 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.range_noise is not None:
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
                  for spec in specs]
-    tracking = ({} if args.mpc_reference == "nominal" else {"reference": args.mpc_reference}) | (
-        {"lookahead": args.mpc_lookahead} if args.mpc_lookahead else {})
-    if tracking:
-        specs = [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **tracking})
-                 if unescaped(spec.filter) == "mpc" else spec for spec in specs]
+    specs = tuned(specs, mpc_reference=args.mpc_reference, mpc_lookahead=args.mpc_lookahead,
+                  cbf_smoothing=args.cbf_smoothing)
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
           f"{' and the odometry pose' if args.odometry else ' only'}"
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
           f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}"
-          f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}")
+          f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}"
+          f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))
@@ -180,6 +182,7 @@ def _sweep(args: argparse.Namespace) -> int:
         "range_noise": args.range_noise,
         "mpc_reference": args.mpc_reference,
         "mpc_lookahead": args.mpc_lookahead,
+        "cbf_smoothing": args.cbf_smoothing,
         "episodes": len(specs),
         "workers": args.workers,
         "backend": args.backend,
@@ -195,6 +198,17 @@ def _sweep(args: argparse.Namespace) -> int:
         for path in write_plots(Path(args.plots), records, outcomes):
             print(f"wrote {path}")
     return 0
+
+
+def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str = "nominal", mpc_lookahead: float = 0.0,
+          cbf_smoothing: float = 0.0) -> list[EpisodeSpec]:
+    """The specs with the sweep's opt-in filter settings: the MPC rows' reference and look-ahead, the CBF rows'
+    smoothing (with or without the escape); the defaults leave every spec as it is."""
+    extra = {"mpc": ({} if mpc_reference == "nominal" else {"reference": mpc_reference})
+             | ({"lookahead": mpc_lookahead} if mpc_lookahead else {}),
+             "cbf": {"smoothing": cbf_smoothing} if cbf_smoothing else {}}
+    return [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **extra[base]})
+            if extra.get(base := unescaped(spec.filter)) else spec for spec in specs]
 
 
 # ---------------------------------------------------------------------------------------------- CSV

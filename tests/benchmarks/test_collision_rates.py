@@ -103,3 +103,28 @@ def test_mpc_lookahead_reaches_the_mpc_rows_only(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "mpc", "--mpc-lookahead=-1"])
     assert exit_info.value.code == 2
+
+
+def test_the_opt_in_settings_reach_their_own_rows_only():
+    specs = collision_rates.episode_specs(
+        collision_rates.matrix(["goal_rosbot"], None, ["zones", "cbf", "cbf+escape", "mpc", "mpc+escape"]), range(1))
+    assert collision_rates.tuned(specs) == specs          # the defaults: every filter as shipped
+    tuned = {spec.filter: dict(spec.filter_options) for spec in collision_rates.tuned(
+        specs, mpc_reference="cbf", mpc_lookahead=0.1, cbf_smoothing=2.0)}
+    assert tuned["cbf"] == tuned["cbf+escape"] == {"smoothing": 2.0}
+    assert tuned["mpc"] == tuned["mpc+escape"] == {"reference": "cbf", "lookahead": 0.1}
+    assert tuned["zones"] == {}
+
+
+@pytest.mark.sim
+def test_cbf_smoothing_is_a_checked_option_recorded_in_the_json(tmp_path, capsys):
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf", "--seeds", "1", "--duration", "1",
+                                 "--workers", "1", "--cbf-smoothing", "1", "--no-progress", "--json", str(out)])
+    assert code == 0
+    assert "the CBF smooths its commands by 1" in capsys.readouterr().out
+    assert json.loads(out.read_text())["config"]["cbf_smoothing"] == 1.0
+    with pytest.raises(SystemExit) as exit_info:
+        collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf", "--cbf-smoothing=-1"])
+    assert exit_info.value.code == 2
+    assert "--cbf-smoothing: must be a finite number >= 0 and <= 100, got -1" in capsys.readouterr().err
