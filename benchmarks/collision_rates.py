@@ -42,7 +42,7 @@ from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
-from benchmarks.common import names, run_cli, run_sweep, sweep_parser, where, write_json
+from benchmarks.common import names, opt_in_settings, run_cli, run_sweep, sweep_parser, where, write_json
 from safenav._checks import argument_type, integer, number, positive, writable_file
 from safenav.experiments import (
     EpisodeOutcome,
@@ -57,7 +57,7 @@ from safenav.experiments import (
 from safenav.experiments.runner import reproducible_settings, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
-from safenav.filters import FILTER_NAMES, FILTERS, unescaped
+from safenav.filters import FILTER_NAMES, FILTERS
 from safenav.filters.mpc.config import REFERENCES
 from safenav.scenarios import scenario
 from safenav.sim_bullet import SimConfig
@@ -204,11 +204,13 @@ def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str = "nominal", mpc_l
           cbf_smoothing: float = 0.0) -> list[EpisodeSpec]:
     """The specs with the sweep's opt-in filter settings: the MPC rows' reference and look-ahead, the CBF rows'
     smoothing (with or without the escape); the defaults leave every spec as it is."""
-    extra = {"mpc": ({} if mpc_reference == "nominal" else {"reference": mpc_reference})
-             | ({"lookahead": mpc_lookahead} if mpc_lookahead else {}),
-             "cbf": {"smoothing": cbf_smoothing} if cbf_smoothing else {}}
-    return [dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **extra[base]})
-            if extra.get(base := unescaped(spec.filter)) else spec for spec in specs]
+    tuned_specs = []
+    for spec in specs:
+        extra = opt_in_settings(spec.filter, mpc_reference=mpc_reference, mpc_lookahead=mpc_lookahead,
+                                cbf_smoothing=cbf_smoothing)
+        tuned_specs.append(dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **extra})
+                           if extra else spec)
+    return tuned_specs
 
 
 # ---------------------------------------------------------------------------------------------- CSV

@@ -32,6 +32,7 @@ from safenav._checks import argument_type, writable_file
 from safenav.errors import SafeNavError
 from safenav.experiments.runner import JobRunner, add_sweep_options, sweep_settings
 from safenav.experiments.tables import markdown
+from safenav.filters import unescaped
 
 warnings.filterwarnings("ignore", category=UserWarning, module=r"qpsolvers(\..*)?$")
 
@@ -133,6 +134,19 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str
         return value
 
     return markdown(headers, [[cell(value) for value in row] for row in rows])
+
+
+def opt_in_settings(filter_name: str, *, mpc_reference: str = "nominal", mpc_lookahead: float = 0.0,
+                    cbf_smoothing: float = 0.0) -> dict[str, Any]:
+    """A benchmark's opt-in settings that apply to ``filter_name`` (with or without the escape): the MPC's
+    reference and look-ahead, the CBF's smoothing; empty for the defaults, and for every other filter."""
+    base = unescaped(filter_name)
+    if base == "mpc":
+        return ({} if mpc_reference == "nominal" else {"reference": mpc_reference}) | (
+            {"lookahead": mpc_lookahead} if mpc_lookahead else {})
+    if base == "cbf":
+        return {"smoothing": cbf_smoothing} if cbf_smoothing else {}
+    return {}
 
 
 def names(text: str) -> list[str]:

@@ -45,7 +45,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import SHIPPED, run_cli, where
+from benchmarks.common import SHIPPED, opt_in_settings, run_cli, where
 from safenav._checks import argument_type, number
 from safenav._optional import require
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
@@ -757,9 +757,8 @@ def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], 
             for body, reference in itertools.product(bodies, references):
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model
-                settings = ({} if body == "disk" else {"body": body}) | (
-                    {} if reference == "nominal" else {"reference": reference}) | (
-                    {"lookahead": mpc_lookahead} if mpc_lookahead and unescaped(filter_name) == "mpc" else {})
+                settings = ({} if body == "disk" else {"body": body}) | opt_in_settings(
+                    filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
                 for dt in dts:
                     for base in bases:
                         for give_velocity in ((True, False) if base == "instant" else (True,)):

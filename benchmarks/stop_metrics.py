@@ -51,7 +51,16 @@ import numpy as np
 if __package__ in (None, ""):   # python benchmarks/stop_metrics.py: import from this checkout
     sys.path[0] = str(Path(__file__).resolve().parents[1])
 
-from benchmarks.common import markdown_table, names, run_cli, run_sweep, sweep_parser, where, write_json
+from benchmarks.common import (
+    markdown_table,
+    names,
+    opt_in_settings,
+    run_cli,
+    run_sweep,
+    sweep_parser,
+    where,
+    write_json,
+)
 from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments.runner import reproducible_settings
@@ -253,11 +262,8 @@ def run_job(job: StopJob) -> dict[str, Any]:
     robot = preset(job.robot)
     plan = script(job)
     config = EpisodeConfig(duration=plan.duration, stop_on_collision=False)
-    settings = {} if job.real_time else reproducible_settings(job.filter)
-    if unescaped(job.filter) == "mpc":
-        settings["reference"] = job.mpc_reference
-        if job.mpc_lookahead:
-            settings["lookahead"] = job.mpc_lookahead
+    settings = {**({} if job.real_time else reproducible_settings(job.filter)),
+                **opt_in_settings(job.filter, mpc_reference=job.mpc_reference, mpc_lookahead=job.mpc_lookahead)}
     safety_filter = make_filter(job.filter, robot, config.sim.control_dt, **settings)
     started = time.perf_counter()
     result = run_episode(plan.world, robot, Cruise(CRUISE_SPEED[job.robot]), safety_filter, config=config,

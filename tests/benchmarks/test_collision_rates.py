@@ -65,44 +65,47 @@ def test_benchmark_rejects_unknown_names(capsys):
     assert "\n" not in error
 
 
+def _one_episode(tmp_path, capsys, scenario_name: str, filters: str, *options: str) -> tuple[str, dict]:
+    """A sweep of one 1 s episode per filter with ``options``: what it printed, and its JSON."""
+    out = tmp_path / "rates.json"
+    code = collision_rates.main(["--scenarios", scenario_name, "--filters", filters, "--seeds", "1", "--duration",
+                                 "1", "--workers", "1", *options, "--no-progress", "--json", str(out)])
+    assert code == 0
+    return capsys.readouterr().out, json.loads(out.read_text())
+
+
+def _usage_error(capsys, *argv: str) -> str:
+    """The one-line usage error of a bad option (argparse's exit code 2)."""
+    with pytest.raises(SystemExit) as exit_info:
+        collision_rates.main(list(argv))
+    assert exit_info.value.code == 2
+    return capsys.readouterr().err
+
+
 @pytest.mark.sim
 def test_odometry_gives_the_filters_the_pose_and_the_report_says_so(tmp_path, capsys):
-    out = tmp_path / "rates.json"
-    code = collision_rates.main(["--scenarios", "wall_follower", "--filters", "cbf", "--seeds", "1", "--duration",
-                                 "1", "--workers", "1", "--odometry", "--no-progress", "--json", str(out)])
-    assert code == 0
-    assert "the filters get the measured velocity and the odometry pose" in capsys.readouterr().out
-    report = json.loads(out.read_text())
+    printed, report = _one_episode(tmp_path, capsys, "wall_follower", "cbf", "--odometry")
+    assert "the filters get the measured velocity and the odometry pose" in printed
     assert report["config"]["odometry"] is True and report["cells"][0]["collisions"] == 0
 
 
 @pytest.mark.sim
 def test_range_noise_replaces_the_presets_noise_in_the_simulator_only(tmp_path, capsys):
-    out = tmp_path / "rates.json"
-    code = collision_rates.main(["--scenarios", "door_m2wr", "--filters", "cbf", "--seeds", "1", "--duration", "1",
-                                 "--workers", "1", "--range-noise", "0", "--no-progress", "--json", str(out)])
-    assert code == 0
-    assert "lidar range noise 0 m" in capsys.readouterr().out
-    assert json.loads(out.read_text())["config"]["range_noise"] == 0.0
-    with pytest.raises(SystemExit) as exit_info:     # an argparse usage error
-        collision_rates.main(["--scenarios", "door_m2wr", "--filters", "cbf", "--range-noise=-0.1"])
-    assert exit_info.value.code == 2
-    assert "--range-noise: must be a finite number >= 0 and <= 1, got -0.1" in capsys.readouterr().err
+    printed, report = _one_episode(tmp_path, capsys, "door_m2wr", "cbf", "--range-noise", "0")
+    assert "lidar range noise 0 m" in printed
+    assert report["config"]["range_noise"] == 0.0
+    error = _usage_error(capsys, "--scenarios", "door_m2wr", "--filters", "cbf", "--range-noise=-0.1")
+    assert "--range-noise: must be a finite number >= 0 and <= 1, got -0.1" in error
 
 
 @pytest.mark.sim
 def test_mpc_lookahead_reaches_the_mpc_rows_only(tmp_path, capsys):
-    out = tmp_path / "rates.json"
-    code = collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf,mpc", "--seeds", "1", "--duration",
-                                 "1", "--workers", "1", "--mpc-lookahead", "0.1", "--no-progress", "--json", str(out)])
-    assert code == 0
-    assert "the MPC plans a look-ahead of 0.1 m" in capsys.readouterr().out
-    assert json.loads(out.read_text())["config"]["mpc_lookahead"] == 0.1
+    printed, report = _one_episode(tmp_path, capsys, "goal_rosbot", "cbf,mpc", "--mpc-lookahead", "0.1")
+    assert "the MPC plans a look-ahead of 0.1 m" in printed
+    assert report["config"]["mpc_lookahead"] == 0.1
     specs = collision_rates.episode_specs(collision_rates.matrix(["goal_rosbot"], None, ["cbf", "mpc"]), range(1))
     assert all("lookahead" not in spec.filter_options for spec in specs)   # the default filters, unchanged
-    with pytest.raises(SystemExit) as exit_info:
-        collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "mpc", "--mpc-lookahead=-1"])
-    assert exit_info.value.code == 2
+    _usage_error(capsys, "--scenarios", "goal_rosbot", "--filters", "mpc", "--mpc-lookahead=-1")
 
 
 def test_the_opt_in_settings_reach_their_own_rows_only():
@@ -118,13 +121,8 @@ def test_the_opt_in_settings_reach_their_own_rows_only():
 
 @pytest.mark.sim
 def test_cbf_smoothing_is_a_checked_option_recorded_in_the_json(tmp_path, capsys):
-    out = tmp_path / "rates.json"
-    code = collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf", "--seeds", "1", "--duration", "1",
-                                 "--workers", "1", "--cbf-smoothing", "1", "--no-progress", "--json", str(out)])
-    assert code == 0
-    assert "the CBF smooths its commands by 1" in capsys.readouterr().out
-    assert json.loads(out.read_text())["config"]["cbf_smoothing"] == 1.0
-    with pytest.raises(SystemExit) as exit_info:
-        collision_rates.main(["--scenarios", "goal_rosbot", "--filters", "cbf", "--cbf-smoothing=-1"])
-    assert exit_info.value.code == 2
-    assert "--cbf-smoothing: must be a finite number >= 0 and <= 100, got -1" in capsys.readouterr().err
+    printed, report = _one_episode(tmp_path, capsys, "goal_rosbot", "cbf", "--cbf-smoothing", "1")
+    assert "the CBF smooths its commands by 1" in printed
+    assert report["config"]["cbf_smoothing"] == 1.0
+    error = _usage_error(capsys, "--scenarios", "goal_rosbot", "--filters", "cbf", "--cbf-smoothing=-1")
+    assert "--cbf-smoothing: must be a finite number >= 0 and <= 100, got -1" in error
