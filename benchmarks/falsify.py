@@ -36,7 +36,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +48,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
 from benchmarks.common import SHIPPED, opt_in_settings, run_cli, where
 from safenav._checks import argument_type, number
 from safenav._optional import require
+from safenav.errors import InvalidConfig
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter, unescaped
 from safenav.filters.mpc.config import REFERENCES
@@ -87,7 +88,7 @@ class Episode:
     """One adversarial episode: everything needed to replay it exactly.
 
     Attributes:
-        robot: preset name.
+        robot: a preset's name, or a robot of your own as its fields (:meth:`RobotSpec.to_dict`).
         filter: filter name (``"cbf"``, ``"mpc"``).
         base: base model (one of :data:`BASES`).
         dt: control period [s].
@@ -110,7 +111,7 @@ class Episode:
             escape sets it itself).
     """
 
-    robot: str
+    robot: str | dict[str, Any]
     filter: str
     base: str
     dt: float
@@ -195,6 +196,35 @@ class Outcome:
         if not self.valid:
             return 1.0 - min(self.start_barrier, 0.0) + float(self.hidden_at_start)
         return self.min_clearance - self.margin
+
+
+def robot_spec(robot: str | Mapping[str, Any]) -> RobotSpec:
+    """The robot of an episode or a cell: a preset's name, or a robot's fields (:meth:`RobotSpec.to_dict`)."""
+    return preset(robot) if isinstance(robot, str) else RobotSpec.from_dict(robot)
+
+
+def robot_name(robot: str | Mapping[str, Any]) -> str:
+    """A preset's name, or the ``name`` of a robot given by its fields."""
+    return robot if isinstance(robot, str) else str(robot.get("name", "robot"))
+
+
+def load_robots(paths: Sequence[str]) -> list[dict[str, Any]]:
+    """Robots of your own from JSON files, each a robot's fields (:meth:`RobotSpec.to_dict`) or a list of them.
+
+    Raises:
+        InvalidConfig: a file does not describe robots (the message names the file and the field).
+    """
+    robots = []
+    for path in paths:
+        with open(path) as handle:
+            data = json.load(handle)
+        for item in data if isinstance(data, list) else [data]:
+            try:
+                RobotSpec.from_dict(item)
+            except InvalidConfig as error:
+                raise InvalidConfig(f"{path}: {error}") from None
+            robots.append(dict(item))
+    return robots
 
 
 def hidden_at_start(robot: RobotSpec, scene: Scene, margin: float) -> bool:
@@ -389,7 +419,7 @@ def _footprint_clearances(scene: Scene, poses: np.ndarray, footprint: np.ndarray
 
 def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[str, Any]]]:
     """Simulate ``episode``; returns its outcome and, with ``record``, one dict per period."""
-    robot = preset(episode.robot)
+    robot = robot_spec(episode.robot)
     dt = episode.dt
     safety = make_filter(episode.filter, robot, dt, **episode.settings)
     if episode.escape:
@@ -505,7 +535,7 @@ def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
     return [(*corners[i], *corners[(i + 1) % 4]) for i in range(4)]
 
 
-def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float, give_velocity: bool,
+def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
            settings: dict[str, Any] | None = None) -> Episode:
     """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
@@ -513,7 +543,7 @@ def decode(x: np.ndarray, *, robot: str, filter_name: str, base: str, dt: float,
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
     and 17 of the vector choose (so one search covers them all).
     """
-    spec = preset(robot)
+    spec = robot_spec(robot)
     R = spec.radius
     u = [_unit(x, i) for i in range(N_COORDINATES)]
     if not isinstance(geometry, str):
@@ -735,17 +765,17 @@ BODIES = ("disk", "polygon", "cover")
 """Body models searched: the circumscribed disk, and the cover of the footprint (its truth is then the polygon)."""
 
 
-def _has_body(filter_name: str, robot: str, body: str) -> bool:
-    if preset(robot).footprint is None:
+def _has_body(filter_name: str, robot: str | dict[str, Any], body: str) -> bool:
+    if robot_spec(robot).footprint is None:
         return False
     try:
-        make_filter(filter_name, preset(robot), 0.05, body=body)
+        make_filter(filter_name, robot_spec(robot), 0.05, body=body)
     except (TypeError, ValueError):
         return False
     return True
 
 
-def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
+def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
@@ -770,18 +800,20 @@ def _cells(robots: Sequence[str], filters: Sequence[str], bases: Sequence[str], 
 
 def cell_margin(cell: dict[str, Any]) -> float:
     """The margin of a cell's filter [m] (a job: building an MPC takes a while)."""
-    return make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
+    return make_filter(cell["filter_name"], robot_spec(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
 
 
 def _cell_key(cell: dict[str, Any]) -> str:
     settings = cell.get("settings", {})
-    return "/".join((cell["robot"], cell["filter_name"], *([settings["body"]] if "body" in settings else []),
+    return "/".join((robot_name(cell["robot"]), cell["filter_name"],
+                     *([settings["body"]] if "body" in settings else []),
                      *([f"{settings['reference']}-reference"] if "reference" in settings else []),
                      *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
     label = {key: value for key, value in cells[index].items() if key not in ("geometry", "nominal") and value != {}}
+    label["robot"] = robot_name(label["robot"])
     return f"[{index + 1}/{len(cells)}] {label} worst {min(f.outcome.objective for f in found):+.4f} m"
 
 
@@ -807,7 +839,11 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=2000,
                         help="episodes in all, at least (spread over the cells, rounded up)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--robots", nargs="+", default=["rosbot", "puzzlebot", "m2wr"])
+    parser.add_argument("--robots", nargs="*", default=["rosbot", "puzzlebot", "m2wr"],
+                        help="presets to search (none: only the robots of --robot-spec)")
+    parser.add_argument("--robot-spec", nargs="+", default=[], metavar="PATH",
+                        help="also search robots of your own: JSON files, each a robot's fields "
+                             "(safenav.robot.RobotSpec.to_dict) or a list of them")
     parser.add_argument("--filters", nargs="+", default=["cbf", "mpc"])
     parser.add_argument("--bases", nargs="+", default=list(BASES), choices=BASES)
     parser.add_argument("--dts", nargs="+", type=float, default=[0.02, 0.05, 0.1])
@@ -840,8 +876,8 @@ def _run(args: argparse.Namespace) -> int:
                   f"{row['message']}")
         print(outcome)
         return 0 if not outcome.violated else 1
-    cells = _cells(args.robots, args.filters, args.bases, args.dts, args.geometries, args.nominals, args.bodies,
-                   args.mpc_reference, args.mpc_lookahead)
+    cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
+                   args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

@@ -397,6 +397,45 @@ class RobotSpec:
         """A copy with some fields changed (validated)."""
         return dataclasses.replace(self, **changes)
 
+    def to_dict(self) -> dict[str, Any]:
+        """The robot as plain JSON values, which :meth:`from_dict` turns back into an equal robot.
+
+        Lidars are dicts of :class:`LidarSpec` fields, mounts ``[x, y, yaw]`` [m, m, rad], the
+        footprint a list of ``[x, y]`` vertices [m].
+        """
+        data = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)}
+        data["lidar"] = _lidar_dict(self.lidar)
+        data["extra_lidars"] = [_lidar_dict(lidar) for lidar in self.extra_lidars]
+        if self.footprint is not None:
+            data["footprint"] = [list(vertex) for vertex in self.footprint]
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RobotSpec:
+        """A robot from the plain values of :meth:`to_dict` (a JSON or YAML file of your own robot).
+
+        ``lidar`` (and each of ``extra_lidars``) is a mapping of :class:`LidarSpec` fields, with
+        ``mount`` as ``[x, y, yaw]`` [m, m, rad] and ``cloud`` as a mapping of
+        :class:`~safenav.pointcloud.CloudSlice` fields; every value is checked as the classes check it.
+
+        Raises:
+            InvalidConfig: a field is missing or unknown (the message lists the known ones), or a
+                value is out of range.
+        """
+        fields = _known_fields(cls, data, "RobotSpec")
+        if "lidar" in fields:
+            fields["lidar"] = _lidar_from(fields["lidar"], "RobotSpec.lidar")
+        if "extra_lidars" in fields:
+            extra = fields["extra_lidars"]
+            if isinstance(extra, (str, Mapping)) or not isinstance(extra, Sequence):
+                raise InvalidConfig(f"RobotSpec.extra_lidars must be a list of lidars, got {extra!r}")
+            fields["extra_lidars"] = tuple(_lidar_from(item, f"RobotSpec.extra_lidars[{index}]")
+                                           for index, item in enumerate(extra))
+        try:
+            return cls(**fields)
+        except TypeError as error:   # a required field is missing
+            raise InvalidConfig(f"RobotSpec.from_dict: {error}") from None
+
     # ------------------------------------------------------------------ scans from drivers
 
     def match_scan(self, scan: LaserScan, *, strict: bool = True) -> LaserScan:
@@ -532,6 +571,40 @@ def _same_pose(a: Pose2D, b: Pose2D) -> bool:
     """Whether two mounts agree within :data:`MOUNT_POSITION_TOLERANCE` and :data:`ANGLE_TOLERANCE`."""
     return (abs(a.x - b.x) <= MOUNT_POSITION_TOLERANCE and abs(a.y - b.y) <= MOUNT_POSITION_TOLERANCE
             and abs(wrap_angle(a.yaw - b.yaw)) <= ANGLE_TOLERANCE)
+
+
+def _lidar_dict(lidar: LidarSpec) -> dict[str, Any]:
+    data = {field.name: getattr(lidar, field.name) for field in dataclasses.fields(lidar)}
+    data["mount"] = [float(value) for value in lidar.mount]
+    if lidar.cloud is not None:
+        data["cloud"] = dataclasses.asdict(lidar.cloud)
+    return data
+
+
+def _known_fields(cls: type, data: Any, label: str) -> dict[str, Any]:
+    """``data`` as keyword arguments of the dataclass ``cls``; an unknown key is an error that lists the known ones."""
+    if not isinstance(data, Mapping):
+        raise InvalidConfig(f"{label} must be a mapping of its fields, got {data!r}")
+    known = [field.name for field in dataclasses.fields(cls)]
+    unknown = sorted(str(key) for key in data if key not in known)
+    if unknown:
+        raise InvalidConfig(f"{label}: unknown field {unknown[0]!r}; expected some of {', '.join(known)}")
+    return dict(data)
+
+
+def _lidar_from(data: Any, label: str) -> LidarSpec:
+    fields = _known_fields(LidarSpec, data, label)
+    if "mount" in fields:
+        mount = fields["mount"]
+        if isinstance(mount, (str, Mapping)) or not isinstance(mount, Sequence) or len(mount) != 3:
+            raise InvalidConfig(f"{label}.mount must be [x, y, yaw] [m, m, rad], got {mount!r}")
+        fields["mount"] = Pose2D(*mount)
+    if fields.get("cloud") is not None:
+        fields["cloud"] = CloudSlice(**_known_fields(CloudSlice, fields["cloud"], f"{label}.cloud"))
+    try:
+        return LidarSpec(**fields)
+    except TypeError as error:   # a required field is missing
+        raise InvalidConfig(f"{label}: {error}") from None
 
 
 def _box(half_length: float, half_width: float) -> tuple[tuple[float, float], ...]:

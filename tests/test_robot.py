@@ -1,4 +1,5 @@
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -19,6 +20,8 @@ from safenav import (
     LidarSpec,
     Pose2D,
     Reading,
+    RobotSpec,
+    SafeNavError,
     UnknownName,
     as_command,
     preset,
@@ -451,3 +454,36 @@ def test_a_lidar_described_from_one_message_matches_its_scans():
     single = LaserScan(angle_min=0.3, angle_max=0.3, angle_increment=0.01, range_min=0.1, range_max=10.0, ranges=[1.0],
                        mount=(0.1, 0.0, 0.0))
     assert preset("rosbot").replace(lidar=LidarSpec.from_scan(single)).match_scan(single) is single
+
+
+# ============================================================================ a robot as plain values
+
+
+@pytest.mark.parametrize("robot", [*PRESET_NAMES, "corners", "cloud"])
+def test_a_robot_goes_to_json_and_back_equal(robot):
+    from safenav.pointcloud import CloudSlice
+
+    spec = {"corners": CORNERS,
+            "cloud": preset("rosbot").replace(extra_lidars=(LidarSpec(
+                n_beams=90, angle_min=-0.5, angle_max=0.5, range_min=0.1, range_max=4.0, mount=Pose2D(0.1, 0.0, 0.0),
+                frame_id="camera", cloud=CloudSlice(z_min=-0.1, z_max=0.4, empty="invalid", axes="optical")),))
+            }.get(robot) or preset(robot)
+    data = json.loads(json.dumps(spec.to_dict()))
+    assert RobotSpec.from_dict(data) == spec
+    assert data["lidar"]["mount"] == [spec.lidar.mount.x, spec.lidar.mount.y, spec.lidar.mount.yaw]
+
+
+@pytest.mark.parametrize(("change", "fragment"), [
+    (lambda data: data.update(wheels=2), "unknown field 'wheels'; expected some of name, radius"),
+    (lambda data: data.pop("a_max"), "missing 1 required positional argument: 'a_max'"),
+    (lambda data: data["lidar"].update(fov=3.0), "RobotSpec.lidar: unknown field 'fov'"),
+    (lambda data: data["lidar"].update(mount=[0.1, 0.0]), r"RobotSpec.lidar.mount must be \[x, y, yaw\]"),
+    (lambda data: data.update(extra_lidars={"n_beams": 3}), "RobotSpec.extra_lidars must be a list of lidars"),
+    (lambda data: data.update(v_max=-1.0), "RobotSpec.v_max"),
+])
+def test_a_robot_from_bad_plain_values_names_what_is_wrong(change, fragment):
+    data = preset("m2wr").to_dict()
+    change(data)
+    with pytest.raises(InvalidConfig, match=fragment) as raised:
+        RobotSpec.from_dict(data)
+    assert isinstance(raised.value, SafeNavError) and isinstance(raised.value, ValueError)

@@ -35,7 +35,14 @@ import numpy as np
 from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters.body import BodyModel
-from safenav.filters.perception import Frontier, PointMemory, beam_points, dead_reckoning, unknown_region
+from safenav.filters.perception import (
+    Frontier,
+    PointMemory,
+    beam_points,
+    dead_reckoning,
+    horizon_points,
+    unknown_region,
+)
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
@@ -302,9 +309,17 @@ class View(NamedTuple):
     uncertainty: np.ndarray
     """``(N,)`` position uncertainty of each point [m] (0 for current points)."""
     n_current: int
-    """How many of :attr:`points` the current scans give."""
+    """How many of :attr:`points` the current scans' readings give (the first ones)."""
     frontier: Frontier
     """The part of the outline facing unknown space (see :func:`~safenav.filters.perception.unknown_region`)."""
+    n_horizon: int = 0
+    """How many points follow those as the edge of what the lidars see
+    (:func:`~safenav.filters.perception.horizon_points`); the remembered ones come last."""
+
+    @property
+    def horizon(self) -> np.ndarray:
+        """``(K, 2)`` the points where what the lidars see ends [m] (none where the range is long enough)."""
+        return self.points[self.n_current:self.n_current + self.n_horizon]
 
 
 def as_scans(scan: Any) -> tuple[LaserScan, ...]:
@@ -398,7 +413,26 @@ class SafetyFilter(abc.ABC):
         """Called when the filter brakes instead of filtering (stale, bad input, no data, hard rows)."""
 
     def _braking_start(self, velocity: np.ndarray | None) -> np.ndarray | None:
-        """The velocity braking starts from: the measured one (``None``: stop at once, an instant base)."""
+        """Where braking starts from: :meth:`command_origin` (``None``: stop at once, an instant base)."""
+        return self.command_origin(velocity)
+
+    def command_origin(self, velocity: np.ndarray | None) -> np.ndarray | None:
+        """The centre of the box of commands the next call may return [m/s, rad/s] (``None``: no box).
+
+        The measured ``velocity``: the base reaches each command within the period, so the box is
+        what its acceleration limits reach from there in one period. For a lagging base
+        (``time_constant > 0``), after the first call, the last command returned: a lagging base
+        is commanded a sequence that slews at the acceleration limits, and its velocity follows
+        that sequence ``time_constant`` behind, braking at ``a_max`` once the lag has passed, as
+        the filters' braking rows and plans assume. A box centred on the measured velocity would
+        let each command lead the velocity by one period's change at most, and the base would
+        brake at only ``(1 - exp(-dt / time_constant)) a_max``: too slowly for those rows
+        (``tests/filters/test_safety_holes.py::test_a_lagging_base_brakes_at_its_limit_behind_the_commands``).
+        """
+        if velocity is None:
+            return None
+        if self.time_constant > 0.0 and self._called:
+            return self._last_command
         return velocity
 
     @abc.abstractmethod
@@ -630,9 +664,10 @@ class SafetyFilter(abc.ABC):
         late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
         if late:
             held = period
-        view = self._observe(scans)
+        view = self._observe(scans, held)
         result = self._filter(nominal, view, current, held)
         self._remember(view)
+        result = self._told_horizon(result, view)
         if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
             return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
                                f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
@@ -706,12 +741,30 @@ class SafetyFilter(abc.ABC):
                 return ages, f"scan from {scan.frame_id!r} is {age:.3f} s old; timeout {self.scan_timeout:.3f} s"
         return ages, ""
 
-    def _observe(self, scans: tuple[LaserScan, ...]) -> View:
-        """Obstacle points (current and remembered) and the unknown region of this call."""
+    def horizon_reach(self, period: float | None = None) -> float:
+        """How far from the base origin [m] the edge of what a lidar sees is an obstacle to a call of ``period``.
+
+        Twice the stopping path of the fastest body point (reacting for the period, one more and the
+        lag, then braking at the acceleration limits), plus the body and the margin: a lidar whose
+        ``range_max`` reaches farther gives no horizon points
+        (:func:`~safenav.filters.perception.horizon_points`).
+        """
+        robot = self.robot
+        held = self.dt if period is None else max(float(period), self.dt)
+        speed, lever = max(robot.v_max, -robot.v_min), self.body.reach
+        reaction = held + self.dt + self.time_constant
+        stop = (speed + lever * robot.omega_max) * reaction + speed**2 / (2.0 * robot.a_max) \
+            + lever * robot.omega_max**2 / (2.0 * robot.alpha_max)
+        return self.body.reach + self.margin + 2.0 * stop
+
+    def _observe(self, scans: tuple[LaserScan, ...], period: float | None = None) -> View:
+        """Obstacle points (current, the edge of what the lidars see, remembered) and the unknown region of a call."""
         current = beam_points(scans, self.body)
+        horizon = horizon_points(scans, self.horizon_reach(period))
+        seen = np.vstack((current, horizon)) if horizon.shape[0] else current
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
-            return View(scans, current, np.zeros(current.shape[0]), current.shape[0], frontier)
+            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0])
         if frontier.complete:
             # Every direction round the body is seen now: a remembered point is either seen again or
             # occluded, and an occluded point cannot be the first to come within the margin.
@@ -720,9 +773,22 @@ class SafetyFilter(abc.ABC):
             noise = max(scan_noise(self.robot), 0.0)
             recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
         self._recalled = (recalled, uncertainty)
-        points = np.vstack((current, recalled)) if recalled.shape[0] else current
-        return View(scans, points, np.concatenate((np.zeros(current.shape[0]), uncertainty)), current.shape[0],
-                    frontier)
+        points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
+        return View(scans, points, np.concatenate((np.zeros(seen.shape[0]), uncertainty)), current.shape[0],
+                    frontier, horizon.shape[0])
+
+    @staticmethod
+    def _told_horizon(result: FilterResult, view: View) -> FilterResult:
+        """``result``, its reason saying so when the point behind it is the edge of what the lidars see."""
+        reason = result.reason
+        if reason is None or reason.point is None or view.n_horizon == 0:
+            return result
+        if not np.any(np.all(view.horizon == np.asarray(reason.point), axis=1)):
+            return result
+        told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max): "
+                                     f"the robot keeps able to stop within it", reason.point)
+        message = result.message.replace(str(reason), str(told), 1) if result.message else str(told)
+        return _replace(result, reason=told, message=message)
 
     def _remember(self, view: View) -> None:
         if self.memory is not None:

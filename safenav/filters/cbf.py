@@ -349,7 +349,7 @@ class CBFSafetyFilter(SafetyFilter):
                      ) -> _Problem:
         """Every row of every family, from every point that can matter (every point with ``cut=False``)."""
         robot, body = self.robot, self.body
-        lower, upper = robot.velocity_bounds(velocity, period if velocity is not None else None)
+        lower, upper = robot.velocity_bounds(self.command_origin(velocity), period if velocity is not None else None)
         # The heading turns within the period at most at the fastest yaw rate of the box (and of the
         # current velocity): the arc coefficient of every row uses that rate, not omega_max.
         turn = max(abs(float(lower[1])), abs(float(upper[1])))

@@ -127,6 +127,27 @@ def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_dista
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
+def horizon_points(scans: tuple[LaserScan, ...], reach: float) -> np.ndarray:
+    """Where what the lidars see ends: a point at ``range_max`` along every ``NO_RETURN`` beam, ``(N, 2)`` [m].
+
+    A ``NO_RETURN`` beam says the space is free up to ``range_max``, and nothing beyond it: an
+    obstacle there is seen only once it is within ``range_max``. A base that cannot stop within
+    that distance must not drive as if it were free, so the filters treat these points as
+    obstacles of the current call (never remembered). Only scans whose ``range_max`` can come
+    within ``reach`` [m] of the base origin give any (the tutorial lidars' 12 m and 30 m never do).
+    """
+    pieces = []
+    for scan in scans:
+        if scan.range_max - math.hypot(scan.mount.x, scan.mount.y) > reach:
+            continue
+        index = np.flatnonzero(scan.readings == Reading.NO_RETURN)
+        if index.size:
+            pieces.append(scan.beam_points(index, np.full(index.size, scan.range_max)))
+    if not pieces:
+        return np.empty((0, 2))
+    return pieces[0] if len(pieces) == 1 else np.vstack(pieces)
+
+
 def unknown_beams(scan: LaserScan, max_gap: float) -> np.ndarray:
     """Mask of the beams inside a run of ``INVALID`` readings wider than ``max_gap`` [rad].
 

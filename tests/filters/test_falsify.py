@@ -104,3 +104,33 @@ def test_an_interrupted_falsification_resumes_to_the_same_report(tmp_path, capsy
 def test_the_episodes_asked_for_are_spread_over_the_cells_rounded_up(episodes, cells, each):
     assert episodes_per_cell(episodes, cells) == each
     assert each * cells >= episodes
+
+
+def test_a_robot_of_your_own_is_searched_from_its_json_file_and_its_episodes_replay(tmp_path, capsys):
+    from benchmarks import falsify
+    from safenav.robot import RobotSpec
+
+    robot = preset("puzzlebot").replace(name="my_bot", v_max=0.8, a_max=0.5, radius=0.15)
+    spec_file = tmp_path / "my_bot.json"
+    spec_file.write_text(json.dumps(robot.to_dict()))
+    path = tmp_path / "falsify.json"
+    code = falsify.main(["--episodes", "6", "--robots", "--robot-spec", str(spec_file), "--filters", "cbf",
+                         "--dts", "0.05", "--bases", "lag", "--bodies", "disk", "--workers", "1", "--no-progress",
+                         "--worst", "1", "--json", str(path)])
+    written = json.loads(path.read_text())
+    assert code == 0 and list(written["summary"]) == ["my_bot/cbf"]
+    assert written["summary"]["my_bot/cbf"]["episodes"] == 6
+    worst = Episode.from_json(json.dumps(written["worst"][0]["episode"]))
+    assert RobotSpec.from_dict(worst.robot) == robot
+    assert run(worst)[0].objective == pytest.approx(written["worst"][0]["objective"])
+    assert "my_bot" in capsys.readouterr().out
+
+
+def test_a_bad_robot_file_names_the_file_and_the_field(tmp_path):
+    from benchmarks import falsify
+    from safenav.errors import InvalidConfig
+
+    spec_file = tmp_path / "bad.json"
+    spec_file.write_text(json.dumps({**preset("rosbot").to_dict(), "wheel_base": 0.2}))
+    with pytest.raises(InvalidConfig, match=r"bad\.json: RobotSpec: unknown field 'wheel_base'"):
+        falsify.load_robots([str(spec_file)])

@@ -8,7 +8,9 @@ core was rebuilt (commit 2c9c834); the numbers in the comments are what that cod
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,7 @@ import qpsolvers
 from benchmarks.falsify import TOLERANCE, Episode, run
 from safenav import preset
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
+from safenav.robot import LidarSpec, RobotSpec
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
 M2WR_RADIUS = preset("m2wr").radius
@@ -90,6 +93,76 @@ def test_mpc_told_the_lag_stays_clear_with_a_first_order_lag_base(robot):
     assert_safe(Episode(robot=robot, filter="mpc", base="lag", dt=0.05, segments=((0.16, wall, 3.0, wall),),
                         nominal="arc", params=(spec.v_max, spec.omega_max), duration=4.0,
                         settings={"time_constant": 0.05}))
+
+
+#: A robot of a user's own (not a preset): fast and slow to brake (stopping from full speed takes 3.3 m).
+FAST = RobotSpec(name="fast", radius=0.2, v_max=2.0, v_min=-0.5, omega_max=2.0, a_max=0.6, alpha_max=3.0,
+                 lidar=LidarSpec(n_beams=360, angle_min=-math.pi, angle_max=math.pi, range_min=0.1, range_max=12.0))
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_a_lagging_base_brakes_at_its_limit_behind_the_commands(filter_name):
+    # Found by the falsifier on such a robot (a robot of one's own: `--robot-spec`): moving at 0.83 m/s past
+    # a pole, the nominal turning at it, a base lagging by dt. The CBF's box of commands was centred on
+    # the measured velocity, so each command led the lagging velocity by one period's change at most
+    # and the base braked at 0.63 a_max, while its braking rows assume a_max once the lag has passed
+    # (the adversary also switched the CBF's passage flag, its narrow look-ahead, on and off).
+    # Before: slack from the third period on, contact at step 58 (clearance -0.056 m).
+    log = assert_safe(Episode(
+        robot=FAST.to_dict(), filter=filter_name, base="lag", dt=0.05,
+        circles=((-0.02860417889612171, 0.6842779579276177, 0.03549269431389167),
+                 (-0.4323118214985801, -0.5786829298663626, 0.05264562291045595)),
+        nominal="aim_nearest", params=(1.5755595538280058, 3.140082764011041),
+        velocity=(0.8295471750708945, 0.13244289793203778), duration=4.0, settings={"time_constant": 0.05},
+        passage=(0.17429449657771895, 0.5922233141555279) if filter_name == "cbf" else ()))
+    # The commands slew at the acceleration limits from the last command, not from the measured velocity.
+    steps = np.abs(np.diff([row["u"] for row in log], axis=0))
+    assert np.all(steps <= np.array([0.6, 3.0]) * 0.05 + 1e-9)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+@pytest.mark.parametrize("base", ["instant", "ramp_limit"])
+def test_a_robot_that_cannot_stop_within_its_lidars_range_never_outruns_it(filter_name, base):
+    # The same robot with a lidar that sees 1.5 m, full speed at a wall 3 m ahead. Before: both filters
+    # accelerated to 1.35 m/s in free space, saw the wall at 1.5 m, needed 1.5 m more to stop, and went
+    # through it (A2 held: the wall was seen long before the body came within the margin).
+    short_sighted = FAST.replace(lidar=dataclasses.replace(FAST.lidar, range_max=1.5))
+    log = assert_safe(Episode(robot=short_sighted.to_dict(), filter=filter_name, base=base, dt=0.05,
+                              segments=((3.0, -3.0, 3.0, 3.0),), nominal="arc", params=(2.0, 0.0), duration=6.0))
+    assert max(row["u"][0] for row in log) > 0.25       # it drives, as fast as it can still stop within 1.5 m
+    assert any("where what the lidars see ends (range_max)" in row["message"] for row in log)
+
+
+def test_the_edge_of_what_the_lidars_see_is_an_obstacle_of_the_call_only():
+    short_sighted = FAST.replace(lidar=dataclasses.replace(FAST.lidar, range_max=1.5))
+    safety = CBFSafetyFilter(short_sighted, 0.05)
+    view = safety._observe((short_sighted.scan(),))           # free space: every beam reads no return
+    assert view.n_current == 0 and view.n_horizon == 360
+    assert np.allclose(np.hypot(*view.horizon.T), 1.5)
+    safety.filter((1.0, 0.0), short_sighted.scan(), velocity=(0.0, 0.0))
+    assert len(safety.memory) == 0                            # never remembered as an obstacle
+    # The tutorial lidars (12 m, 30 m) reach farther than any of their robots can travel before stopping,
+    # even for a call a whole second late: they give none, and every answer is what it was.
+    for name in ("rosbot", "puzzlebot", "m2wr"):
+        robot = preset(name)
+        for safety in (CBFSafetyFilter(robot, 0.05), MPCSafetyFilter(robot, 0.05)):
+            assert safety.horizon_reach(1.0) < robot.lidar.range_max
+            assert safety._observe((robot.scan(),), 1.0).n_horizon == 0
+
+
+def test_a_lagging_base_is_commanded_from_the_last_command():
+    robot = preset("rosbot")
+    scan = robot.scan()
+    for safety in (CBFSafetyFilter(robot, 0.05, time_constant=0.1), MPCSafetyFilter(robot, 0.05, time_constant=0.1)):
+        first = safety.filter((-1.0, 0.0), scan, velocity=(0.8, 0.0))   # the first call: from the velocity
+        assert first.u[0] == pytest.approx(0.8 - 1.5 * 0.05)
+        # The base lags behind at 0.78 m/s: the next command slews on from the last one.
+        second = safety.filter((-1.0, 0.0), scan, velocity=(0.78, 0.0))
+        assert second.u[0] == pytest.approx(first.u[0] - 1.5 * 0.05)
+        # An instant base (no lag) is commanded from what it measures.
+    instant = CBFSafetyFilter(robot, 0.05)
+    instant.filter((-1.0, 0.0), scan, velocity=(0.8, 0.0))
+    assert instant.filter((-1.0, 0.0), scan, velocity=(0.78, 0.0)).u[0] == pytest.approx(0.78 - 1.5 * 0.05)
 
 
 def test_a_base_that_lags_more_than_the_filter_assumes_is_reported():

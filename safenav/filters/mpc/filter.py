@@ -416,7 +416,7 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _braking_start(self, velocity: np.ndarray | None) -> np.ndarray:
         # Without a measurement the commands stay a sequence the base can follow: brake from the last one.
-        return velocity if velocity is not None else self._last_command
+        return self.command_origin(velocity) if velocity is not None else self._last_command
 
     # ------------------------------------------------------------------ problem
 
@@ -438,7 +438,7 @@ class MPCSafetyFilter(SafetyFilter):
         """
         robot = self.robot
         # A lagging base is commanded a sequence that slews at the acceleration limits; its velocity follows.
-        origin = velocity if self.model.time_constant <= 0.0 else self._last_command
+        origin = self.command_origin(velocity)
         change = self._ramps_for(self._layout_for(hold)).reach
         reach_low, reach_high = origin - change, origin + change
         # Later steps: the limits, widened only to let a base outside them brake at its limit.
@@ -479,7 +479,7 @@ class MPCSafetyFilter(SafetyFilter):
             ranges = np.hypot(points[:, 0], points[:, 1])
             keep = ranges <= reach + buffer + uncertainty
             # Which of the kept points are remembered (only the look-ahead's control disk needs to know).
-            remembered = np.flatnonzero(keep) >= view.n_current if self.lookahead > 0.0 else None
+            remembered = np.flatnonzero(keep) >= view.n_current + view.n_horizon if self.lookahead > 0.0 else None
             points, uncertainty, now, ranges = points[keep], uncertainty[keep], now[keep], ranges[keep]
         else:
             now = np.empty((0, offsets.shape[0]))
