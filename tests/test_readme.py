@@ -1,5 +1,6 @@
 """The README's set-up commands are the ones CI runs."""
 
+import json
 import math
 import re
 from pathlib import Path
@@ -62,6 +63,9 @@ def test_readme_own_robot_example_builds_a_polygon_filter_for_its_lidar():
     safety, lidar = namespace["safety"], namespace["lidar"]
     assert safety.robot.lidar == lidar and safety.config.body == "polygon"
     assert safety.robot.radius >= max(math.hypot(x, y) for x, y in safety.robot.footprint)
+    # "a robot can live in a file"
+    my_robot = namespace["my_robot"]
+    assert type(my_robot).from_dict(json.loads(json.dumps(my_robot.to_dict()))) == my_robot
 
 
 @pytest.mark.sim
