@@ -90,3 +90,28 @@ def test_extrapolating_contracting_steps_ends_where_the_plain_sqp_ends(name, dt,
         np.testing.assert_allclose(fast.knots, slow.knots, rtol=0.0, atol=1e-4)
     # ... and it does extrapolate here: fewer iterations in all.
     assert sum(outcome.iterations for outcome in extrapolated) < sum(outcome.iterations for outcome in plain)
+
+
+def test_a_slack_per_point_changes_nothing_where_no_slack_is_needed_and_relaxes_only_the_point_that_needs_it():
+    safety, problems = wall_problems("rosbot", 0.05, 20)
+    checked = 0
+    for nlp in problems:
+        shared = safety.backend.solve(nlp)
+        one_group = safety.backend.solve(nlp._replace(slack_groups=np.zeros(nlp.points.shape[0], dtype=np.intp)))
+        np.testing.assert_array_equal(one_group.knots, shared.knots)     # one group is the shared slack
+        if abs(shared.slack) > 1e-12:
+            continue
+        split = safety.backend.solve(nlp._replace(slack_groups=np.arange(nlp.points.shape[0])))
+        assert np.all(np.abs(split.point_slacks) < 1e-12)
+        np.testing.assert_allclose(split.knots, shared.knots, rtol=0.0, atol=1e-6)
+        checked += 1
+    assert checked >= 15
+    # A point inside the planned radius of every knot (it cannot be kept) next to one just clear of the path:
+    # one slack lets the plan take from the clear point what the other needs; a slack per point does not.
+    nlp = problems[0]
+    points = np.array([[0.0, 0.0], [0.0, nlp.radii[0, 0] + 0.05]])
+    stuck = nlp._replace(points=points, radii=nlp.radii[:2], relief=np.zeros_like(nlp.radii[:2]),
+                         target=np.array([0.0, 3.0]))
+    shared, split = (safety.backend.solve(stuck._replace(slack_groups=groups))
+                     for groups in (None, np.arange(2)))
+    assert shared.slack > 0.0 and split.point_slacks[0] > 0.0 and split.point_slacks[1] == pytest.approx(0.0)

@@ -628,6 +628,8 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
+        if outcome.check.clearance < -VERIFY_TOLERANCE:
+            outcome = self._split_slack(problem, outcome, candidate, deadline)
         outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
@@ -751,12 +753,30 @@ class MPCSafetyFilter(SafetyFilter):
             chosen = np.concatenate((chosen, more[: self.n_points - chosen.size]))
         return chosen
 
-    def _nlp(self, problem: MPCProblem, used: np.ndarray, start: np.ndarray) -> PlanNLP:
-        """The NLP of ``problem`` with the points ``used`` in the slots, starting from the plan ``start``."""
+    def _nlp(self, problem: MPCProblem, used: np.ndarray, start: np.ndarray, split: bool = False) -> PlanNLP:
+        """The NLP of ``problem`` with the points ``used`` in the slots, starting from the plan ``start``
+        (``split``: a slack of its own for each point)."""
         soft = self._inflation(problem.hold)[3]
         return PlanNLP(problem.velocity, np.clip(problem.u_nom, self.robot.lower, self.robot.upper),
                        problem.points[used], problem.radii[used], self._relief(problem)[used], problem.lower,
-                       problem.upper, problem.layout, self._step, soft, problem.layout.sample(start))
+                       problem.upper, problem.layout, self._step, soft, problem.layout.sample(start),
+                       np.arange(used.size) if split else None)
+
+    def _split_slack(self, problem: MPCProblem, solved: _Solved, candidate: np.ndarray, deadline: float) -> _Solved:
+        """An answer that needs slack, solved again with a slack of its own for each point.
+
+        One slack relaxes every row alike: a plan that cannot keep one point (revealed late, too
+        near to brake for) would then come as much nearer to every other point, which it could
+        keep clear. With a slack per point (each at the cost of the one), only the rows that need
+        relaxing are relaxed. Taken when verified (points outside the slots keep the guaranteed
+        radius); only the direct SQP has slack per point.
+        """
+        if not isinstance(self.backend, DirectSQP) or solved.commands is None:
+            return solved
+        split = self._solve(problem, solved.commands, candidate, deadline, split=True)
+        if split.commands is None or split.check is None:
+            return solved._replace(solve_time=solved.solve_time + split.solve_time)
+        return split._replace(solve_time=solved.solve_time + split.solve_time)
 
     def _relief(self, problem: MPCProblem) -> np.ndarray:
         """``(M, D)`` the share of the soft buffer each row may use: down to :attr:`MPCProblem.floor`."""
@@ -766,11 +786,12 @@ class MPCSafetyFilter(SafetyFilter):
         return np.clip((problem.radii - problem.floor) / soft, 0.0, 1.0)
 
     def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float,
-               candidate_check: PlanCheck | None = None) -> _Solved:
+               candidate_check: PlanCheck | None = None, split: bool = False) -> _Solved:
         """Solve the NLP; swap points the answer violates into the slots and solve again.
 
         An answer is accepted when, for every point in reach, each knot keeps either the
-        guaranteed radius or the distance the solver's own slacks allow in its row.
+        guaranteed radius or the distance the solver's own slacks allow in its row (with
+        ``split``, each point in a slot has a slack of its own, and the others none).
         ``candidate_check`` is the fast path's check of ``candidate``, when already made.
         """
         n_points = self.n_points
@@ -785,7 +806,7 @@ class MPCSafetyFilter(SafetyFilter):
         # violation keeps its slot, so the working set grows monotonically until the slots run out.
         priority = np.full(problem.points.shape[0], np.inf)
         for round_index in range(self.config.max_rounds):
-            outcome = self.backend.solve(self._nlp(problem, used, commands), deadline, self.clock)
+            outcome = self.backend.solve(self._nlp(problem, used, commands, split), deadline, self.clock)
             solve_time += outcome.solve_time
             if outcome.abandoned:
                 return _Solved(None, None, used, solve_time, "deadline", abandoned=True)
@@ -798,7 +819,12 @@ class MPCSafetyFilter(SafetyFilter):
                                f"answer of {self.backend.name} ({outcome.status}) violates the velocity or "
                                f"acceleration bounds by {check.limits:.3g}")
             rows = row_values(check.distances, problem.radii)
-            relaxed = rows + relief * max(0.0, outcome.buffer_slack) + max(0.0, outcome.slack)
+            if outcome.point_slacks is None:
+                slacks: np.ndarray | float = max(0.0, outcome.slack)
+            else:
+                slacks = np.zeros((rows.shape[0], 1))
+                slacks[used, 0] = np.maximum(outcome.point_slacks, 0.0)
+            relaxed = rows + relief * max(0.0, outcome.buffer_slack) + slacks
             shortfall = np.min(np.maximum(relaxed, check.distances - problem.guaranteed), axis=1)
             violated = np.flatnonzero(shortfall < -VERIFY_TOLERANCE)
             if violated.size == 0:

@@ -128,6 +128,10 @@ class PlanNLP(NamedTuple):
     """The largest buffer slack [m]."""
     start: np.ndarray
     """``(n, 2)`` the knots' commands to start from (the warm start)."""
+    slack_groups: np.ndarray | None = None
+    """``(K,)`` which slack relaxes each point's rows (``0 .. G - 1``, each with the cost of ``s_h``), or
+    ``None``: one slack for every row. The filter gives each point its own when one slack was not
+    enough, so that a point that cannot be kept clear does not relax the rows of those that can."""
 
 
 class NLPOutcome(NamedTuple):
@@ -138,7 +142,7 @@ class NLPOutcome(NamedTuple):
     buffer_slack: float
     """``s_b`` [m]."""
     slack: float
-    """``s_h`` [m]."""
+    """``s_h`` [m] (with slack groups, the largest)."""
     status: str
     """The solver's own status word."""
     iterations: int
@@ -147,6 +151,8 @@ class NLPOutcome(NamedTuple):
     """Wall time of the solve [s]."""
     abandoned: bool = False
     """The deadline passed before the solve finished (``knots`` is ``None``)."""
+    point_slacks: np.ndarray | None = None
+    """``(K,)`` with slack groups, the slack relaxing each point's rows [m]; ``None``: :attr:`slack` for every row."""
 
 
 class PlanSolver(Protocol):
@@ -273,18 +279,28 @@ class DirectSQP:
         layout = nlp.layout
         data = self.prepare(layout)
         n = layout.n_knots
-        n_vars = 2 * n + 2
+        # The slacks: one for every row (s_h), or one per group of points.
+        groups = nlp.slack_groups
+        n_groups = 1 if groups is None or groups.size == 0 else int(groups.max()) + 1
+        n_vars = 2 * n + 1 + n_groups
         knots_lower, knots_upper = layout.knot_bounds(nlp.lower, nlp.upper)
-        lower_bounds = np.concatenate((knots_lower.ravel(), (0.0, 0.0)))
-        upper_bounds = np.concatenate((knots_upper.ravel(), (nlp.buffer, np.inf)))
-        knots = np.clip(np.asarray(nlp.start, dtype=float).ravel(), lower_bounds[:-2], upper_bounds[:-2])
+        lower_bounds = np.concatenate((knots_lower.ravel(), np.zeros(1 + n_groups)))
+        upper_bounds = np.concatenate((knots_upper.ravel(), (nlp.buffer,), np.full(n_groups, np.inf)))
+        knots = np.clip(np.asarray(nlp.start, dtype=float).ravel(), knots_lower.ravel(), knots_upper.ravel())
         linear, linear_low, linear_high = self._linear_rows(nlp, data)
+        hessian = data.hessian
+        if n_groups > 1:
+            linear = np.pad(linear, ((0, 0), (0, n_groups - 1)))
+            hessian = np.pad(hessian, (0, n_groups - 1))
+            hessian[2 * n + 1:, 2 * n + 1:] = np.diag(np.full(n_groups, 2.0 * self.cost.slack_weight))
         n_linear = linear.shape[0]
         gradient = np.zeros(n_vars)
         target = np.asarray(nlp.target, dtype=float)
         for axis, weight in enumerate(self.cost.weights):
             gradient[axis:2 * n:2] = -2.0 * weight * target[axis] * data.column_weights
-        gradient[-1] = self.cost.slack_weight
+        gradient[2 * n + 1:] = self.cost.slack_weight
+        # Each point's slack column.
+        slack_column = 2 * n + 1 + (groups if n_groups > 1 else np.zeros(nlp.points.shape[0], dtype=np.intp))
         # Rows are kept as (point, knot-and-disk) arrays, column k D + d for disk d at knot k, and
         # picked by their flat index (point K D + column).
         n_knots = self.model.n_poses
@@ -300,6 +316,7 @@ class DirectSQP:
         row_state = np.zeros(radii.size, dtype=np.int8)
         fixed_state: np.ndarray | None = None
         buffer_slack = slack = 0.0
+        point_slacks: np.ndarray | None = None
         status = "max_iter"
         iterations = 0
         previous_step: np.ndarray | None = None
@@ -347,9 +364,13 @@ class DirectSQP:
                 np.multiply(centre_jacobian[0, column], dx.ravel()[rows, None] * -scale, out=clearance)
                 clearance -= centre_jacobian[1, column] * (dy.ravel()[rows, None] * scale)
                 matrix[n_linear:, 2 * n] = -row_relief
-                matrix[n_linear:, 2 * n + 1] = -1.0
+                if n_groups > 1:
+                    matrix[n_linear:, 2 * n + 1:] = 0.0
+                    matrix[n_linear + np.arange(rows.size), slack_column[rows // n_columns]] = -1.0
+                else:
+                    matrix[n_linear:, 2 * n + 1] = -1.0
                 guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[rows]))
-                qp = QPData(data.hessian, gradient, matrix,
+                qp = QPData(hessian, gradient, matrix,
                             np.concatenate((linear_high, row_values + np.einsum("rj,j->r", clearance, knots))),
                             lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))),
                             guess)
@@ -361,18 +382,20 @@ class DirectSQP:
                 # Every row linearised at the answer, through the centres' displacement.
                 move = answer[:2 * n] - knots
                 moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
+                point_slacks = answer[slack_column]                                     # (M,)
                 row_state = np.zeros(radii.size, dtype=np.int8)
                 if outcome.active is not None:
                     fixed_state = outcome.active[:n_fixed]
                     row_state[rows] = outcome.active[n_fixed:]
                 else:
                     row_state[rows] = (row_values - np.einsum("rj,j->r", clearance, move)
-                                       + row_relief * answer[2 * n] + answer[2 * n + 1]) < ACTIVE_TOLERANCE
+                                       + row_relief * answer[2 * n] + point_slacks[rows // n_columns]
+                                       ) < ACTIVE_TOLERANCE
                 linearised = dx * moved_x
                 linearised += dy * moved_y
                 linearised *= inverse_radii
                 linearised += values
-                linearised += relief * answer[2 * n] + answer[2 * n + 1]
+                linearised += relief * answer[2 * n] + point_slacks[:, None]
                 violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
                 violated &= ~working
                 if not violated.any():
@@ -381,7 +404,8 @@ class DirectSQP:
             step = answer[:2 * n] - knots
             change = float(np.max(np.abs(step)))
             knots = answer[:2 * n].copy()
-            buffer_slack, slack = float(answer[2 * n]), float(answer[2 * n + 1])
+            buffer_slack, slack = float(answer[2 * n]), float(np.max(answer[2 * n + 1:]))
+            point_slacks = answer[slack_column].copy() if n_groups > 1 else None
             if change <= STEP_TOLERANCE:
                 status = "converged"
                 break
@@ -392,7 +416,8 @@ class DirectSQP:
                 ratio = change / previous_change
                 cosine = float(step @ previous_step) / float(np.linalg.norm(step) * np.linalg.norm(previous_step))
                 if EXTRAPOLATION_RATIOS[0] < ratio < EXTRAPOLATION_RATIOS[1] and cosine > EXTRAPOLATION_COSINE:
-                    knots = np.clip(knots + step * (ratio / (1.0 - ratio)), lower_bounds[:-2], upper_bounds[:-2])
+                    knots = np.clip(knots + step * (ratio / (1.0 - ratio)), lower_bounds[:2 * n], upper_bounds[:2 * n])
                     step = None
             previous_step, previous_change = step, change
-        return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time)
+        return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time,
+                          point_slacks=point_slacks)
