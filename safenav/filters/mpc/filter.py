@@ -211,11 +211,13 @@ class MPCSafetyFilter(SafetyFilter):
     (:attr:`FilterResult.warnings`) when the base lags more than the model allows.
 
     **When it cannot hold.** No plan without slack: the plan violates the rows as little as
-    possible (status ``SLACK``). No plan that keeps the hard bounds (a base too fast to stop
-    within the horizon, or moving towards space that has just become unknown): it brakes at
-    its limits (status ``BRAKING``). Solver failure, an answer that fails verification, or the
-    deadline: the filter executes the next command of the last verified plan, which ends
-    stopped (status ``FALLBACK``); without one it brakes at the acceleration limits.
+    possible (status ``SLACK``), each point with a slack of its own (direct SQP): a point it
+    cannot keep clear never relaxes the rows of those it can. No plan that keeps the hard
+    bounds (a base too fast to stop within the horizon, or moving towards space that has just
+    become unknown): it brakes at its limits (status ``BRAKING``). Solver failure, an answer
+    that fails verification, or the deadline: the filter executes the next command of the last
+    verified plan, which ends stopped (status ``FALLBACK``); without one it brakes at the
+    acceleration limits.
 
     Args:
         robot: the robot to protect.
