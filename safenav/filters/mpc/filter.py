@@ -50,6 +50,10 @@ REPAIR_TOLERANCE = 1e-9
 #: After the last swap of missed points, an answer that misses its own rows by at most this much
 #: is accepted, with its true slack reported [m]; a larger miss counts as a failed solve.
 SETTLE_TOLERANCE = 1e-3
+#: An answer whose one slack relaxes the rows by more than this [m] is solved again with a slack per point
+#: (:meth:`MPCSafetyFilter._split_slack`): with less, the rows of the points it could keep clear give way by
+#: at most this much (a robot held by its remembered points' growing uncertainty needs tenths of a millimetre).
+SPLIT_SLACK = 0.005
 
 
 class _Ramps(NamedTuple):
@@ -211,8 +215,9 @@ class MPCSafetyFilter(SafetyFilter):
     (:attr:`FilterResult.warnings`) when the base lags more than the model allows.
 
     **When it cannot hold.** No plan without slack: the plan violates the rows as little as
-    possible (status ``SLACK``), each point with a slack of its own (direct SQP): a point it
-    cannot keep clear never relaxes the rows of those it can. No plan that keeps the hard
+    possible (status ``SLACK``), each point with a slack of its own when one would relax them
+    all by more than :data:`SPLIT_SLACK` (direct SQP): a point it cannot keep clear relaxes the
+    rows of those it can by that much at most. No plan that keeps the hard
     bounds (a base too fast to stop within the horizon, or moving towards space that has just
     become unknown): it brakes at its limits (status ``BRAKING``). Solver failure, an answer
     that fails verification, or the deadline: the filter executes the next command of the last
@@ -630,7 +635,7 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
-        if outcome.check.clearance < -VERIFY_TOLERANCE:
+        if outcome.check.clearance < -SPLIT_SLACK:
             outcome = self._split_slack(problem, outcome, candidate, deadline)
         outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
