@@ -92,6 +92,23 @@ def test_a_solve_past_the_budget_follows_the_stored_plan_and_the_call_ends_on_ti
     assert slow.calls >= 2
 
 
+def test_a_stored_plan_that_crosses_a_wall_seen_since_gives_way_to_braking():
+    # The plan of the first call was verified in free space; the next scan shows a wall across it and the
+    # solve misses the budget. Following the plan would drive into the wall (it was verified against
+    # the points seen then): the filter brakes at its limits, which keeps more clearance, and says why.
+    robot = preset("rosbot")
+    budget = 0.01
+    safety, _, slow = slow_filter(robot, seconds=0.0, budget=budget)
+    first = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.45))), velocity=(0.8, 0.0))
+    assert first.status is FilterStatus.OK and first.solver       # a solved plan: on, then braking late
+    slow.seconds = 2.0 * budget
+    late = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.36))), velocity=tuple(first.u))
+    assert late.status is FilterStatus.FALLBACK and late.reason.family == "deadline"
+    assert "too near a point seen since: braking at the acceleration limits" in late.message
+    assert late.u == pytest.approx(robot.brake(first.u, DT))
+    # A stored plan that still keeps clear is followed as before (the test above).
+
+
 def test_without_a_stored_plan_the_deadline_brakes_at_the_acceleration_limits():
     robot = preset("rosbot")
     safety, _, _ = slow_filter(robot, seconds=0.02, budget=0.01)

@@ -189,7 +189,10 @@ class MPCSafetyFilter(SafetyFilter):
     the SQP: when it runs out the solve is abandoned (the next call starts afresh, on time)
     and the filter follows the next command of its last verified plan, which ends stopped
     (status ``FALLBACK``, reason ``deadline``); without one it brakes at the acceleration
-    limits. The overrun is at most one QP of the SQP.
+    limits. That plan was verified against the points seen then: checked against this call's,
+    when it comes nearer a point than its guaranteed radius (a wall seen since) and braking at
+    the limits keeps more clearance, the filter brakes instead and says so. The overrun is at
+    most one QP of the SQP and that check.
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
@@ -868,11 +871,23 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _fallback(self, problem: MPCProblem, shifted: np.ndarray | None, family: str, detail: str,
                   solve_time: float, details: dict[str, Any]) -> FilterResult:
-        """Next command of the last verified plan (which ends stopped), or braking at the limits without one."""
+        """Next command of the last verified plan (which ends stopped), or braking at the limits without one.
+
+        The last plan was verified against the points seen then. Checked against this call's (a wall
+        that has come into view since), a plan that comes nearer a point than its guaranteed radius
+        gives way to braking at the limits when that keeps more clearance.
+        """
         if shifted is not None:
             commands = shifted.copy()
             commands[0] = np.clip(commands[0], problem.lower[0], problem.upper[0])
             detail = f"{detail}; following the last verified plan"
+            clearance = self.check_plan(problem, commands).clearance
+            if clearance < -VERIFY_TOLERANCE:
+                braking = self._braking(self.robot.brake(problem.velocity, self.dt))
+                if self.check_plan(problem, braking).clearance > clearance:
+                    commands = braking
+                    detail = (f"{detail[: -len('following the last verified plan')]}the last verified plan comes "
+                              f"{-clearance:.3f} m too near a point seen since: braking at the acceleration limits")
             self._commands = commands
         else:
             commands = self._braking(self.robot.brake(problem.velocity, self.dt))
