@@ -766,10 +766,11 @@ BODIES = ("disk", "polygon", "cover")
 
 
 def _has_body(filter_name: str, robot: str | dict[str, Any], body: str) -> bool:
-    if robot_spec(robot).footprint is None:
+    spec = robot_spec(robot)
+    if spec.footprint is None:
         return False
     try:
-        make_filter(filter_name, robot_spec(robot), 0.05, body=body)
+        make_filter(filter_name, spec, 0.05, body=body)
     except (TypeError, ValueError):
         return False
     return True

@@ -89,13 +89,26 @@ def test_odometry_gives_the_filters_the_pose_and_the_report_says_so(tmp_path, ca
     assert report["config"]["odometry"] is True and report["cells"][0]["collisions"] == 0
 
 
+#: Numeric options of the sweep: the scenario they run on, a value, what the header then prints, the JSON key and
+#: value, and a bad value with its usage error. ``--range-noise`` replaces the presets' noise in the simulator only.
+CHECKED_OPTIONS = [
+    ("door_m2wr", "--range-noise", "0", "lidar range noise 0 m", "range_noise", 0.0,
+     "-0.1", "--range-noise: must be a finite number >= 0 and <= 1, got -0.1"),
+    ("goal_rosbot", "--cbf-smoothing", "1", "the CBF smooths its commands by 1", "cbf_smoothing", 1.0,
+     "-1", "--cbf-smoothing: must be a finite number >= 0 and <= 100, got -1"),
+]
+
+
 @pytest.mark.sim
-def test_range_noise_replaces_the_presets_noise_in_the_simulator_only(tmp_path, capsys):
-    printed, report = _one_episode(tmp_path, capsys, "door_m2wr", "cbf", "--range-noise", "0")
-    assert "lidar range noise 0 m" in printed
-    assert report["config"]["range_noise"] == 0.0
-    error = _usage_error(capsys, "--scenarios", "door_m2wr", "--filters", "cbf", "--range-noise=-0.1")
-    assert "--range-noise: must be a finite number >= 0 and <= 1, got -0.1" in error
+@pytest.mark.parametrize(("scenario", "option", "value", "printed_text", "key", "recorded", "bad", "error_text"),
+                         CHECKED_OPTIONS, ids=[row[1] for row in CHECKED_OPTIONS])
+def test_a_numeric_option_is_printed_recorded_in_the_json_and_checked(tmp_path, capsys, scenario, option, value,
+                                                                        printed_text, key, recorded, bad, error_text):
+    printed, report = _one_episode(tmp_path, capsys, scenario, "cbf", option, value)
+    assert printed_text in printed
+    assert report["config"][key] == recorded
+    error = _usage_error(capsys, "--scenarios", scenario, "--filters", "cbf", f"{option}={bad}")
+    assert error_text in error
 
 
 @pytest.mark.sim
@@ -117,12 +130,3 @@ def test_the_opt_in_settings_reach_their_own_rows_only():
     assert tuned["cbf"] == tuned["cbf+escape"] == {"smoothing": 2.0}
     assert tuned["mpc"] == tuned["mpc+escape"] == {"reference": "cbf", "lookahead": 0.1}
     assert tuned["zones"] == {}
-
-
-@pytest.mark.sim
-def test_cbf_smoothing_is_a_checked_option_recorded_in_the_json(tmp_path, capsys):
-    printed, report = _one_episode(tmp_path, capsys, "goal_rosbot", "cbf", "--cbf-smoothing", "1")
-    assert "the CBF smooths its commands by 1" in printed
-    assert report["config"]["cbf_smoothing"] == 1.0
-    error = _usage_error(capsys, "--scenarios", "goal_rosbot", "--filters", "cbf", "--cbf-smoothing=-1")
-    assert "--cbf-smoothing: must be a finite number >= 0 and <= 100, got -1" in error

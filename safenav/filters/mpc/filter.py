@@ -880,14 +880,15 @@ class MPCSafetyFilter(SafetyFilter):
         if shifted is not None:
             commands = shifted.copy()
             commands[0] = np.clip(commands[0], problem.lower[0], problem.upper[0])
-            detail = f"{detail}; following the last verified plan"
+            action = "following the last verified plan"
             clearance = self.check_plan(problem, commands).clearance
             if clearance < -VERIFY_TOLERANCE:
                 braking = self._braking(self.robot.brake(problem.velocity, self.dt))
                 if self.check_plan(problem, braking).clearance > clearance:
                     commands = braking
-                    detail = (f"{detail[: -len('following the last verified plan')]}the last verified plan comes "
-                              f"{-clearance:.3f} m too near a point seen since: braking at the acceleration limits")
+                    action = (f"the last verified plan comes {-clearance:.3f} m too near a point seen since: "
+                              "braking at the acceleration limits")
+            detail = f"{detail}; {action}"
             self._commands = commands
         else:
             commands = self._braking(self.robot.brake(problem.velocity, self.dt))

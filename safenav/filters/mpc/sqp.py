@@ -382,20 +382,20 @@ class DirectSQP:
                 # Every row linearised at the answer, through the centres' displacement.
                 move = answer[:2 * n] - knots
                 moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
-                point_slacks = answer[slack_column]                                     # (M,)
+                slacks = answer[slack_column]                                           # (M,): each point's
                 row_state = np.zeros(radii.size, dtype=np.int8)
                 if outcome.active is not None:
                     fixed_state = outcome.active[:n_fixed]
                     row_state[rows] = outcome.active[n_fixed:]
                 else:
                     row_state[rows] = (row_values - np.einsum("rj,j->r", clearance, move)
-                                       + row_relief * answer[2 * n] + point_slacks[rows // n_columns]
+                                       + row_relief * answer[2 * n] + slacks[rows // n_columns]
                                        ) < ACTIVE_TOLERANCE
                 linearised = dx * moved_x
                 linearised += dy * moved_y
                 linearised *= inverse_radii
                 linearised += values
-                linearised += relief * answer[2 * n] + point_slacks[:, None]
+                linearised += relief * answer[2 * n] + slacks[:, None]
                 violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
                 violated &= ~working
                 if not violated.any():
