@@ -24,7 +24,10 @@ nominal by an escape command until the nominal's way is clear again:
    with it on the other side (its nearest current or remembered point: a lidar that does not look
    back loses an obstacle's end as the robot goes round it), holding ``follow_distance`` beyond the
    margin; turn in place towards the chosen side when something is ahead, or when the filter blocks
-   the following.
+   the following (for one period while the robot still moves, creeping or turning; when it stands
+   still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one
+   period's turn, at the acceleration limit, barely starts, and going back to following at once
+   kept a robot held by its remembered points turning a degree every third of a second).
 4. **Back out** when forward is blocked and the rear is seen and free.
 5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
    clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
@@ -125,6 +128,10 @@ class EscapeConfig:
             a passage [m].
         gap_retry: distance to follow on after the filter blocked the way through a gap before
             looking for a gap again [m].
+        stall_turn: how far the escape turns in place once the filter has blocked its following,
+            and the robot has stood still, for ``STALLED_ESCAPE`` [rad] (the turn lasts until the base
+            has turned that much, or the filter blocks the turn too: a turn of one period, at the
+            acceleration limit, barely starts).
     """
 
     speed: float = 0.4
@@ -138,6 +145,7 @@ class EscapeConfig:
     gap_window: float = 0.6 * math.pi
     gap_band: float = 0.25
     gap_retry: float = 0.5
+    stall_turn: float = 0.25 * math.pi
 
     def __post_init__(self) -> None:
         name = "EscapeConfig."
@@ -152,6 +160,7 @@ class EscapeConfig:
         _checks.number(name + "gap_window", self.gap_window, low=0.0, high=math.pi)
         _checks.positive(name + "gap_band", self.gap_band)
         _checks.number(name + "gap_retry", self.gap_retry, low=0.0)
+        _checks.number(name + "stall_turn", self.stall_turn, low=0.0, high=2.0 * math.pi)
 
 
 class Escape:
@@ -221,7 +230,7 @@ class Escape:
         """Forget the escape and reset the wrapped filter."""
         self.inner.reset()
         self._side, self._elapsed, self._backing, self._last_side, self._start_yaw = 0, 0.0, 0.0, 0, 0.0
-        self._since, self._stalled = math.inf, 0.0
+        self._since, self._stalled, self._still, self._turn_left = math.inf, 0.0, 0.0, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
         self._odometry, self._spots, self._pending, self._blocking = Pose2D(), [], False, None
 
@@ -275,6 +284,13 @@ class Escape:
         self._elapsed += held
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
+        still = bool(np.all(np.abs(result.u) < STALL_PROGRESS * np.abs(self.robot.upper)))
+        self._still = self._still + held if still else 0.0
+        if self._turn_left > 0.0:
+            # A turn in place after a stall lasts until the base has turned that far; a turn the filter blocks as
+            # long as it blocked the following ends it (following is tried again).
+            turned = abs(float(result.u[1])) * held
+            self._turn_left = 0.0 if self._stalled >= STALLED_ESCAPE else self._turn_left - turned
         self._travel(abs(float(result.u[0])) * held)
         side = "left" if self._side > 0 else "right"
         if self._gap is not None:
@@ -316,6 +332,7 @@ class Escape:
             # Still round the same obstacle: keep the side, unless that escape timed out.
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
         self._side, self._elapsed, self._backing, self._stalled = side, 0.0, 0.0, 0.0
+        self._still, self._turn_left = 0.0, 0.0
         self._start_yaw = self._odometry.yaw
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
@@ -407,9 +424,12 @@ class Escape:
                              side * 0.5 * turn])
         keep = robot.radius + self.margin + cfg.follow_distance
         ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
-        if ahead or self._stalled >= STALLED_ESCAPE:   # blocked ahead, or the filter blocks following
+        if not ahead and min(self._stalled, self._still) >= STALLED_ESCAPE and self._turn_left <= 0.0:
+            # The filter blocks following and the robot stands still: turn, and for long enough.
+            self._turn_left, self._stalled = cfg.stall_turn, 0.0
+        if ahead or self._stalled >= STALLED_ESCAPE or self._turn_left > 0.0:
             if robot.v_min < 0.0 and self._rear_free(scans, keep) and self._elapsed > 2.0 * cfg.min_time:
-                self._backing = cfg.back_time
+                self._backing, self._turn_left = cfg.back_time, 0.0
             return np.array([0.0, side * turn])          # turn towards the chosen side in place
         if known.shape[0] == 0:
             return np.array([speed, 0.0])

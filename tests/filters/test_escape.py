@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import itertools
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,9 +18,11 @@ from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, ZonesFilter, check
 from safenav.filters.base import progress
 from safenav.filters.escape import Escape, EscapeConfig
 from safenav.geometry import Pose2D, unicycle_step
+from safenav.robot import RobotSpec
 from safenav.scenarios import door_width
 from safenav.synthetic import Circle, Scene, Segment, synthetic_scan, wall
 
+ROBOTS = Path(__file__).resolve().parents[2] / "benchmarks" / "robots"
 WALL = ((1.0, -1.5, 1.0, 1.5),)     # 3 m wide, 1 m ahead; the goal 3 m ahead, straight behind it
 
 
@@ -123,6 +127,8 @@ def test_bad_settings_are_rejected_and_only_filters_are_wrapped():
         EscapeConfig(speed=0)
     with pytest.raises(InvalidConfig, match="Escape wraps a SafetyFilter"):
         Escape("cbf")
+    with pytest.raises(InvalidConfig, match=r"EscapeConfig.stall_turn must be .* got -0.1"):
+        EscapeConfig(stall_turn=-0.1)
 
 
 DOOR_OFFSET = 0.8   # [m] of the door's centre beside the straight way to the goal
@@ -281,6 +287,29 @@ def test_the_escape_turns_in_place_between_two_obstacles_that_pin_the_look_ahead
         turned += result.u[1] * 0.05
         assert np.all(np.isfinite(result.u))
     assert abs(turned) > 0.5, turned
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_a_turn_after_the_filter_blocked_the_following_lasts_until_the_base_has_turned(make):
+    """A robot blind ahead (the falsifier's rear-lidar robot): the filter lets it turn but never drive forward, and
+    the escape's following is blocked. It turns in place then, and keeps turning until the base has turned
+    ``stall_turn``: it turned for one period every 0.35 s before (the base, at its acceleration limit, reached a
+    tenth of the turn, which counted as progress and sent the escape back to following), as it did on the m2wr
+    held by its remembered points (goal_m2wr seed 6: 20 s without turning)."""
+    robot = RobotSpec.from_dict(json.loads((ROBOTS / "rear_lidar.json").read_text()))
+    escape = Escape(make(robot, 0.05, deadlock_time=0.5))
+    scan = synthetic_scan(robot, Scene.of())
+    velocity, turns, turned = np.zeros(2), [], 0.0
+    for _ in range(60):
+        result = escape.filter((robot.v_max, 0.0), scan, velocity=velocity)
+        assert result.u[0] <= 1e-9                          # never forward into what it cannot see
+        if result.escape and result.u[0] == 0.0 and result.u[1] != 0.0:
+            turned += result.u[1] * 0.05
+        elif turned:
+            turns.append(turned)
+            turned = 0.0
+        velocity = robot.clip(result.u, velocity, 0.05)
+    assert turns and max(abs(turn) for turn in turns) >= EscapeConfig().stall_turn, turns
 
 
 def trap_facing_the_goal(robot: str, filter_name: str, **settings) -> Episode:
