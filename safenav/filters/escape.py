@@ -413,6 +413,8 @@ class Escape:
         if self._gap is None and self._backing <= 0.0 and self._gap_wait <= 0.0:
             self._gap = self._find_gap(known, scans)
             self._gap_left = cfg.clear_distance
+            if self._gap is not None:
+                self._turn_left = 0.0     # a way through: the turn after a blocked follow is not needed
         if self._gap is not None:
             self._aim(known, scans)
             heading_error = float(wrap_angle(self._gap - self._turned))
