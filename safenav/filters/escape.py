@@ -128,9 +128,9 @@ class EscapeConfig:
             a passage [m].
         gap_retry: distance to follow on after the filter blocked the way through a gap before
             looking for a gap again [m].
-        stall_turn: how far the escape turns in place once the filter has blocked its following,
-            and the robot has stood still, for ``STALLED_ESCAPE`` [rad] (the turn lasts until the base
-            has turned that much, or the filter blocks the turn too: a turn of one period, at the
+        stall_turn: how far the escape turns in place [rad] once the filter has blocked its following
+            and the robot has stood still for ``STALLED_ESCAPE`` (the turn lasts until the base has
+            turned that much, or the filter blocks the turn too: a turn of one period, at the
             acceleration limit, barely starts).
     """
 
