@@ -9,6 +9,7 @@ core was rebuilt (commit 2c9c834); the numbers in the comments are what that cod
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 from pathlib import Path
@@ -20,6 +21,8 @@ import qpsolvers
 from benchmarks.falsify import TOLERANCE, Episode, run
 from safenav import preset
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
+from safenav.filters.mpc.filter import SPLIT_SLACK
+from safenav.filters.mpc.sqp import DirectSQP
 from safenav.robot import LidarSpec, RobotSpec
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
@@ -279,3 +282,32 @@ FOUND_ON_ROBOTS = json.loads((Path(__file__).resolve().parents[1] / "data" / "fa
 @pytest.mark.parametrize("found", sorted(FOUND_ON_ROBOTS))
 def test_a_point_the_mpc_cannot_keep_clear_does_not_relax_the_rows_of_the_others(found):
     assert_safe(Episode.from_json(FOUND_ON_ROBOTS[found]))
+
+
+def test_after_an_answer_that_needed_slack_per_point_the_next_call_solves_with_it_at_once():
+    """A wall seen too late stays for many calls. The call after one whose answer needed more than
+    ``SPLIT_SLACK`` solves with a slack per point at once (instead of one slack first, then again with one per
+    point: twice the work, and under a compute budget the second solve was abandoned and the one-slack answer
+    stood, the falsifier's two contacts on ``fast_slow_braking`` at dt 0.02), and stays safe."""
+    episode = Episode.from_json(FOUND_ON_ROBOTS["fast_slow_braking, mpc, ramp_limit base, dt 0.02"])
+    calls: list[dict] = []
+    plan_for, solve = MPCSafetyFilter._plan_for, DirectSQP.solve
+
+    def traced_plan(self, *args, **kwargs):
+        calls.append({"grouped": []})
+        result = plan_for(self, *args, **kwargs)
+        calls[-1]["slack"] = result.slack
+        return result
+
+    def traced_solve(self, nlp, *args, **kwargs):
+        calls[-1]["grouped"].append(nlp.slack_groups is not None)
+        return solve(self, nlp, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(MPCSafetyFilter, "_plan_for", traced_plan)
+        patch.setattr(DirectSQP, "solve", traced_solve)
+        assert_safe(episode)
+    following = [after for before, after in itertools.pairwise(calls)
+                 if before["slack"] > SPLIT_SLACK and after["grouped"]]
+    assert following, "the episode has no answer that needed more than SPLIT_SLACK"
+    assert all(after["grouped"][0] for after in following), [after["grouped"] for after in following]

@@ -220,7 +220,9 @@ class MPCSafetyFilter(SafetyFilter):
     **When it cannot hold.** No plan without slack: the plan violates the rows as little as
     possible (status ``SLACK``), each point with a slack of its own when one would relax them
     all by more than :data:`SPLIT_SLACK` (direct SQP): a point it cannot keep clear relaxes the
-    rows of those it can by that much at most. No plan that keeps the hard
+    rows of those it can by that much at most. The call after such an answer solves with a slack
+    per point at once (the point stays; one slack first, then one per point, is twice the work
+    within the compute budget), and with one slack when that finds no verified answer. No plan that keeps the hard
     bounds (a base too fast to stop within the horizon, or moving towards space that has just
     become unknown): it brakes at its limits (status ``BRAKING``). Solver failure, an answer
     that fails verification, or the deadline: the filter executes the next command of the last
@@ -287,6 +289,9 @@ class MPCSafetyFilter(SafetyFilter):
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
         self._commands: np.ndarray | None = None
+        # Whether the last solved answer needed more than SPLIT_SLACK: the next call solves with a slack per point
+        # at once (the wall it could not keep clear is still there).
+        self._splitting = False
         #: The filter whose answer the plan tracks (``reference="cbf"``), else ``None``.
         self.reference: CBFSafetyFilter | None = None
         if cfg.reference == "cbf":
@@ -397,6 +402,7 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _on_reset(self) -> None:
         self._commands = None
+        self._splitting = False
         if self.reference is not None:
             self.reference.reset()
 
@@ -622,12 +628,18 @@ class MPCSafetyFilter(SafetyFilter):
         candidate = self._braking(first, hold)
         check = self.check_plan(problem, candidate)
         if check.limits <= BOUND_TOLERANCE and check.planned >= 0.0:
-            self._commands = candidate
+            self._commands, self._splitting = candidate, False
             return self._result(problem, candidate, check, details, used=np.empty(0, dtype=np.intp),
                                 solve_time=0.0, solver="")
         warm = np.clip(candidate if shifted is None else self._realigned(shifted, previous), problem.lower,
                        problem.upper)
-        outcome = self._solve(problem, warm, candidate, deadline, check)
+        split = self._splitting and isinstance(self.backend, DirectSQP)
+        outcome = self._solve(problem, warm, candidate, deadline, check, split=split)
+        if split and outcome.commands is None and not outcome.abandoned:
+            # No verified answer with a slack per point: one slack for every row, as in any other call.
+            retried = self._solve(problem, warm, candidate, deadline, check)
+            outcome = retried._replace(solve_time=outcome.solve_time + retried.solve_time)
+            split = False
         if outcome.abandoned:
             spent = self.clock() - (deadline - self.budget)
             return self._fallback(problem, shifted, "deadline",
@@ -638,10 +650,11 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
-        if outcome.check.clearance < -SPLIT_SLACK:
+        if outcome.check.clearance < -SPLIT_SLACK and not split:
             outcome = self._split_slack(problem, outcome, candidate, deadline)
         outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
+        self._splitting = outcome.check.clearance < -SPLIT_SLACK
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
                             solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held)
 
