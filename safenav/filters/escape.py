@@ -90,6 +90,9 @@ __all__ = ["Escape", "EscapeConfig"]
 #: How long the filter may block the escape's own commands before it turns in place instead [s].
 STALLED_ESCAPE = 0.3
 
+#: The robot stands when both commands it is sent stay under this fraction of the velocity limits.
+STANDING = 0.1
+
 #: Angle between two directions the gap search tries [rad].
 GAP_RESOLUTION = math.radians(1.0)
 
@@ -284,7 +287,7 @@ class Escape:
         self._elapsed += held
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
-        still = bool(np.all(np.abs(result.u) < STALL_PROGRESS * np.abs(self.robot.upper)))
+        still = bool(np.all(np.abs(result.u) < STANDING * np.abs(self.robot.upper)))
         self._still = self._still + held if still else 0.0
         if self._turn_left > 0.0:
             # A turn in place after a stall lasts until the base has turned that far; a turn the filter blocks as
