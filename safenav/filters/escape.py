@@ -28,7 +28,11 @@ nominal by an escape command until the nominal's way is clear again:
    still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one
    period's turn, at the acceleration limit, barely starts, and going back to following at once
    kept a robot held by its remembered points turning a degree every third of a second).
-4. **Back out** when forward is blocked and the rear is seen and free.
+4. **Back out** when forward is blocked and the rear is seen and free. **Drive out of a pocket**
+   when the escape has turned :data:`WAY_OUT_TURN` (half a turn) in place without driving
+   (something within the following distance ahead every way it faced): along the direction whose
+   corridor, among the current and remembered points, is free the longest, up to the following
+   distance short of its end, or as far as the filter lets it; then it follows again.
 5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
    clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
    sides near it (within ``gap_band`` of its edges: a passage, a door, not open floor), is a
@@ -98,6 +102,11 @@ GAP_RESOLUTION = math.radians(1.0)
 
 #: How far either side of its heading the way through a gap is re-aimed at each call [rad].
 GAP_TRACKING = math.radians(15.0)
+
+#: An escape that has turned this far in place [rad] without driving (something ahead every way it
+#: faced, and no way through a gap) drives out the way with the longest free corridor: half a turn, after
+#: which a robot has faced every way and its memory holds what a 180-degree lidar saw.
+WAY_OUT_TURN = math.pi
 
 #: A forward request is clear when the nominal's ``v`` exceeds this fraction of ``v_max``.
 FORWARD_REQUEST = 0.25
@@ -193,6 +202,9 @@ class Escape:
         self._gap: float | None = None   # heading through the gap being driven, since the deadlock began [rad]
         self._gap_left = 0.0    # distance still to drive through it [m]
         self._gap_wait = 0.0    # distance to follow before looking for a gap again [m]
+        self._spun = 0.0        # angle turned in place without driving since then [rad]
+        self._out: float | None = None   # heading of the way out being driven, since the deadlock began [rad]
+        self._out_left = 0.0    # distance still to drive along it [m]
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
         self._odometry = Pose2D()        # the base's pose since the reset (odometry, else the commands) [m, m, rad]
         self._spots: list[np.ndarray] = []   # where deadlocks began, in the frame of _odometry [m]
@@ -235,6 +247,7 @@ class Escape:
         self._side, self._elapsed, self._backing, self._last_side, self._start_yaw = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled, self._still, self._turn_left = math.inf, 0.0, 0.0, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._spun, self._out, self._out_left = 0.0, None, 0.0
         self._odometry, self._spots, self._pending, self._blocking = Pose2D(), [], False, None
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -295,9 +308,14 @@ class Escape:
             turned = abs(float(result.u[1])) * held
             self._turn_left = 0.0 if self._stalled >= STALLED_ESCAPE else self._turn_left - turned
         self._travel(abs(float(result.u[0])) * held)
+        in_place = command[0] == 0.0 and command[1] != 0.0 and self._gap is None and self._out is None
+        self._spun = self._spun + abs(float(result.u[1])) * held if in_place else 0.0
         side = "left" if self._side > 0 else "right"
         if self._gap is not None:
             doing = f"driving through a gap {math.degrees(wrap_angle(self._gap)):+.0f} deg off the way it was going"
+        elif self._out is not None:
+            doing = (f"driving out of a pocket the freest way, {math.degrees(wrap_angle(self._out)):+.0f} deg off the "
+                     f"way it was going")
         elif self._backing > 0.0:
             doing = "backing out"
         else:
@@ -338,6 +356,7 @@ class Escape:
         self._still, self._turn_left = 0.0, 0.0
         self._start_yaw = self._odometry.yaw
         self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._spun, self._out, self._out_left = 0.0, None, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
 
     def _move(self, command: np.ndarray, held: float) -> None:
@@ -401,6 +420,10 @@ class Escape:
                 self._gap, self._gap_wait = None, self.config.gap_retry
         else:
             self._gap_wait = max(self._gap_wait - distance, 0.0)
+        if self._out is not None:
+            self._out_left -= distance
+            if self._out_left <= 0.0 or self._stalled >= STALLED_ESCAPE:    # out, or as far as the filter lets it
+                self._out = None
 
     def _command(self, points: np.ndarray, known: np.ndarray, scans: tuple[LaserScan, ...]) -> np.ndarray:
         """The escape command: through a gap, back out, or follow the obstacle on the chosen side.
@@ -428,6 +451,12 @@ class Escape:
             return np.array([-min(cfg.speed * -robot.v_min, 0.5 * -robot.v_min) if robot.v_min < 0 else 0.0,
                              side * 0.5 * turn])
         keep = robot.radius + self.margin + cfg.follow_distance
+        if self._out is None and self._spun >= WAY_OUT_TURN:
+            self._way_out(known, keep)
+        if self._out is not None:
+            heading_error = float(wrap_angle(self._out - self._turned))
+            omega = float(np.clip(2.0 * heading_error, -turn, turn))
+            return np.array([speed * max(math.cos(heading_error), 0.0) if abs(heading_error) < 0.5 else 0.0, omega])
         ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
         if not ahead and min(self._stalled, self._still) >= STALLED_ESCAPE and self._turn_left <= 0.0:
             # The filter blocks following and the robot stands still: turn, and for long enough.
@@ -449,6 +478,16 @@ class Escape:
         heading_error = float(wrap_angle(tangent + correction))
         omega = float(np.clip(2.0 * heading_error, -turn, turn))
         return np.array([speed * max(math.cos(heading_error), 0.2), omega])
+
+    def _way_out(self, known: np.ndarray, keep: float) -> None:
+        """Turned half a turn in place without driving: aim along the direction whose corridor (the filter's
+        ``corridor_half_width``) is free the longest, among the current and remembered points, and drive along
+        it until ``keep`` short of its end (at least ``follow_distance``), or as far as the filter lets it."""
+        offsets = _fan(math.pi)
+        free = _free_length(known, offsets - self._turned, self.clear_half_width, 2.0 * self.config.clear_distance)
+        best = int(np.argmax(free))      # nearest the m-line among equals (the fan comes nearest zero first)
+        self._out, self._spun = float(offsets[best]), 0.0
+        self._out_left = max(float(free[best]) - keep, self.config.follow_distance)
 
     def _rear_free(self, scans: tuple[LaserScan, ...], keep: float) -> bool:
         for scan in scans:
@@ -575,13 +614,27 @@ def _side_room(points: np.ndarray, directions: np.ndarray, length: float,
     points = points[np.hypot(points[:, 0], points[:, 1]) < math.hypot(length, reach)]   # the rest is too far
     if points.shape[0] == 0:
         return np.full(len(directions), math.inf), np.full(len(directions), math.inf)
-    c, s = np.cos(directions), np.sin(directions)
-    along = np.outer(points[:, 0], c) + np.outer(points[:, 1], s)
-    across = np.outer(points[:, 1], c) - np.outer(points[:, 0], s)
+    along, across = _along_across(points, directions)
     ahead = (along > 0.0) & (along < length) & (np.abs(across) < reach)
     left = np.where(ahead & (across >= 0.0), across, math.inf).min(axis=0)
     right = np.where(ahead & (across < 0.0), -across, math.inf).min(axis=0)
     return left, right
+
+
+def _free_length(points: np.ndarray, directions: np.ndarray, half_width: float, horizon: float) -> np.ndarray:
+    """Per direction [rad]: how far [m] its corridor of ``half_width`` is free of ``points`` (``horizon`` at most)."""
+    points = points[np.hypot(points[:, 0], points[:, 1]) < math.hypot(horizon, half_width)]
+    if points.shape[0] == 0:
+        return np.full(len(directions), horizon)
+    along, across = _along_across(points, directions)
+    inside = (along > 0.0) & (np.abs(across) < half_width)
+    return np.minimum(np.where(inside, along, math.inf).min(axis=0), horizon)
+
+
+def _along_across(points: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(N, D)`` each point's distance [m] along each direction [rad] and to the left of its centre line."""
+    c, s = np.cos(directions), np.sin(directions)
+    return np.outer(points[:, 0], c) + np.outer(points[:, 1], s), np.outer(points[:, 1], c) - np.outer(points[:, 0], s)
 
 
 def _corridor(points: np.ndarray, direction: float, half_width: float, length: float) -> bool:

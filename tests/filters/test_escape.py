@@ -16,11 +16,11 @@ from benchmarks.falsify import TOLERANCE, Episode, run
 from safenav import InvalidConfig, preset
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, ZonesFilter, check_filter
 from safenav.filters.base import progress
-from safenav.filters.escape import Escape, EscapeConfig
+from safenav.filters.escape import WAY_OUT_TURN, Escape, EscapeConfig
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec
 from safenav.scenarios import door_width
-from safenav.synthetic import Circle, Scene, Segment, synthetic_scan, wall
+from safenav.synthetic import Circle, Scene, Segment, box, synthetic_scan, wall
 
 ROBOTS = Path(__file__).resolve().parents[2] / "benchmarks" / "robots"
 WALL = ((1.0, -1.5, 1.0, 1.5),)     # 3 m wide, 1 m ahead; the goal 3 m ahead, straight behind it
@@ -429,3 +429,34 @@ def test_the_escape_calls_the_filter_once_per_period_also_when_a_deadlock_begins
         pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
     assert escaped > 10
     assert sorted(calls) == list(range(1, 121)), [c for c in set(calls) if calls.count(c) > 1]
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_in_a_pocket_with_something_ahead_every_way_the_escape_drives_out_instead_of_spinning(make):
+    """The m2wr in a closed box a little larger than itself, something within ``keep + 0.1`` ahead every way it faces
+    (goal_m2wr seed 37 ended in such a pocket between two boxes and a cylinder): the escape's following turns in
+    place, and before, with the gap search waiting for distance followed, it turned in place at full rate until
+    ``max_time`` (15 s there). Now, after half a turn without driving, it drives the freest way out (the box's long
+    axis): in one go it turns in place at most that half turn and the turn to aim."""
+    robot, dt = preset("m2wr"), 0.05
+    settings = {"budget": math.inf} if make is MPCSafetyFilter else {}
+    safety = make(robot, dt, deadlock_time=0.5, **settings)
+    escape = Escape(safety)
+    half_x, half_y = 0.55, robot.radius + safety.margin + 0.08
+    scene = Scene.of(*box((0.0, 0.0), (2.0 * half_x, 2.0 * half_y)))
+    pose, velocity = Pose2D(0.0, 0.0, 0.5 * math.pi), np.zeros(2)      # facing a long side: the way out is sideways
+    spin, longest, outs, worst = 0.0, 0.0, [], math.inf
+    for _ in range(round(20.0 / dt)):
+        result = escape.filter((robot.v_max, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
+        spin = spin + abs(float(result.u[1])) * dt if result.u[0] == 0.0 and result.u[1] != 0.0 else 0.0
+        longest = max(longest, spin)
+        if result.escape and result.escape.startswith("driving out") and result.u[0] > 0.01:
+            outs.append(pose.yaw)
+        for _ in range(5):
+            velocity = robot.clip(result.u, velocity, dt / 5)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt / 5)
+        worst = min(worst, min(half_x - abs(pose.x), half_y - abs(pose.y)) - robot.radius)
+    assert worst >= safety.margin - TOLERANCE
+    assert outs, "the escape never drove out"
+    assert max(abs(math.sin(yaw)) for yaw in outs) < 0.5, outs   # along the long axis (it drives within 0.5 rad)
+    assert longest <= WAY_OUT_TURN + math.pi + 0.1, longest
