@@ -37,10 +37,12 @@ from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters.body import BodyModel
 from safenav.filters.perception import (
     Frontier,
+    SHADOW_SPACING,
     PointMemory,
     beam_points,
     dead_reckoning,
     horizon_points,
+    shadow_points,
     unknown_region,
 )
 from safenav.geometry import Pose2D, unicycle_step
@@ -313,8 +315,9 @@ class View(NamedTuple):
     frontier: Frontier
     """The part of the outline facing unknown space (see :func:`~safenav.filters.perception.unknown_region`)."""
     n_horizon: int = 0
-    """How many points follow those as the edge of what the lidars see
-    (:func:`~safenav.filters.perception.horizon_points`); the remembered ones come last."""
+    """How many points follow those as the edge of what the lidars see (at ``range_max``,
+    :func:`~safenav.filters.perception.horizon_points`, and along the edges of what obstacles hide,
+    :func:`~safenav.filters.perception.shadow_points`); the remembered ones come last."""
 
     @property
     def horizon(self) -> np.ndarray:
@@ -757,10 +760,21 @@ class SafetyFilter(abc.ABC):
             + lever * robot.omega_max**2 / (2.0 * robot.alpha_max)
         return self.body.reach + self.margin + 2.0 * stop
 
+    @property
+    def shadow_jump(self) -> float:
+        """How much farther [m] a beam's neighbour must read for its hit to be an occluder's edge
+        (:func:`~safenav.filters.perception.shadow_points`): four range-noise deviations and the points' spacing
+        (a surface seen obliquely or through noise is not an edge)."""
+        return 4.0 * max(scan_noise(self.robot), 0.0) + SHADOW_SPACING
+
     def _observe(self, scans: tuple[LaserScan, ...], period: float | None = None) -> View:
         """Obstacle points (current, the edge of what the lidars see, remembered) and the unknown region of a call."""
         current = beam_points(scans, self.body)
-        horizon = horizon_points(scans, self.horizon_reach(period))
+        reach = self.horizon_reach(period)
+        horizon = horizon_points(scans, reach)
+        shadows = shadow_points(scans, reach, self.shadow_jump)
+        if shadows.shape[0]:
+            horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
@@ -785,8 +799,9 @@ class SafetyFilter(abc.ABC):
             return result
         if not np.any(np.all(view.horizon == np.asarray(reason.point), axis=1)):
             return result
-        told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max): "
-                                     f"the robot keeps able to stop within it", reason.point)
+        told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max, or "
+                                     f"the edge of what an obstacle hides): the robot keeps able to stop within it",
+                      reason.point)
         message = result.message.replace(str(reason), str(told), 1) if result.message else str(told)
         return _replace(result, reason=told, message=message)
 
