@@ -36,8 +36,8 @@ from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters.body import BodyModel
 from safenav.filters.perception import (
-    Frontier,
     SHADOW_SPACING,
+    Frontier,
     PointMemory,
     beam_points,
     dead_reckoning,

@@ -24,8 +24,8 @@ from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
 from safenav.filters import base as filters_base
 from safenav.filters.mpc.filter import SPLIT_SLACK
 from safenav.filters.mpc.sqp import DirectSQP
-from safenav.robot import LidarSpec, RobotSpec
 from safenav.filters.perception import SHADOW_SPACING, shadow_points
+from safenav.robot import LidarSpec, RobotSpec
 from safenav.synthetic import Circle, Scene, Segment, synthetic_scan
 
 M2WR_RADIUS = preset("m2wr").radius
