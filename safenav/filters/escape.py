@@ -443,9 +443,7 @@ class Escape:
                 self._turn_left = 0.0     # a way through: the turn after a blocked follow is not needed
         if self._gap is not None:
             self._aim(known, scans)
-            heading_error = float(wrap_angle(self._gap - self._turned))
-            omega = float(np.clip(2.0 * heading_error, -turn, turn))
-            return np.array([speed * max(math.cos(heading_error), 0.0) if abs(heading_error) < 0.5 else 0.0, omega])
+            return self._steer(self._gap, speed, turn)
         if self._backing > 0.0:
             self._backing -= self.dt
             return np.array([-min(cfg.speed * -robot.v_min, 0.5 * -robot.v_min) if robot.v_min < 0 else 0.0,
@@ -454,9 +452,7 @@ class Escape:
         if self._out is None and self._spun >= WAY_OUT_TURN:
             self._way_out(known, keep)
         if self._out is not None:
-            heading_error = float(wrap_angle(self._out - self._turned))
-            omega = float(np.clip(2.0 * heading_error, -turn, turn))
-            return np.array([speed * max(math.cos(heading_error), 0.0) if abs(heading_error) < 0.5 else 0.0, omega])
+            return self._steer(self._out, speed, turn)
         ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
         if not ahead and min(self._stalled, self._still) >= STALLED_ESCAPE and self._turn_left <= 0.0:
             # The filter blocks following and the robot stands still: turn, and for long enough.
@@ -478,6 +474,13 @@ class Escape:
         heading_error = float(wrap_angle(tangent + correction))
         omega = float(np.clip(2.0 * heading_error, -turn, turn))
         return np.array([speed * max(math.cos(heading_error), 0.2), omega])
+
+    def _steer(self, heading: float, speed: float, turn: float) -> np.ndarray:
+        """Towards ``heading`` (since the deadlock began) [rad]: turn at twice the error, at most ``turn`` [rad/s],
+        and drive at ``speed`` [m/s] times the error's cosine once it is under 0.5 rad."""
+        heading_error = float(wrap_angle(heading - self._turned))
+        omega = float(np.clip(2.0 * heading_error, -turn, turn))
+        return np.array([speed * max(math.cos(heading_error), 0.0) if abs(heading_error) < 0.5 else 0.0, omega])
 
     def _way_out(self, known: np.ndarray, keep: float) -> None:
         """Turned half a turn in place without driving: aim along the direction whose corridor (the filter's
