@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import functools
 import itertools
 import json
 import math
@@ -553,12 +554,17 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
     keep_out = R + margin + 1e-3
     circles: list[tuple[float, float, float]] = []
     segments: list[tuple[float, float, float, float]] = []
-    gap = spec.lidar.angle_increment
+    settings = dict(settings or {})
+    if base == "lag":   # the guarantee covers a lagging base the filter is told about
+        settings.setdefault("time_constant", dt)
+    reach, smallest = sighting(robot, filter_name, dt, settings)
 
     def pole(distance_unit: float, bearing_unit: float, radius_unit: float) -> tuple[float, float, float]:
-        # Thin poles just wider than the beam gap 1 m away, up to 10 cm.
-        radius = 0.5 * gap + radius_unit * 0.1
-        distance = keep_out + radius + distance_unit * 1.5
+        # Thin poles just wider than the narrowest obstacle the filter claims to see in time (A2: the beam gap
+        # 1 m away, or where the robot must see it to brake), up to 10 cm wider; out to 1.5 m, or as far as
+        # that reach (a thin pole between two beams far ahead comes into view only near).
+        radius = 0.5 * smallest + radius_unit * 0.1
+        distance = keep_out + radius + distance_unit * max(1.5, reach)
         bearing = (bearing_unit * 2.0 - 1.0) * math.pi
         return (distance * math.cos(bearing), distance * math.sin(bearing), radius)
 
@@ -608,9 +614,6 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
     # The filter's passage flag (the CBF's narrow look-ahead), switched by the adversary: never, or for a
     # share of every period of 0.05-2 s.
     passage = () if u[18] < 0.25 else (0.05 + 1.95 * u[19], (u[18] - 0.25) / 0.75)
-    settings = dict(settings or {})
-    if base == "lag":   # the guarantee covers a lagging base the filter is told about
-        settings.setdefault("time_constant", dt)
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
@@ -778,9 +781,11 @@ def _has_body(filter_name: str, robot: str | dict[str, Any], body: str) -> bool:
 
 def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
-           mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0) -> list[dict[str, Any]]:
+           mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0,
+           min_obstacle_width: float | None = None) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
-    odometry for the instant base); the geometry and the nominal are searched inside each."""
+    odometry for the instant base); the geometry and the nominal are searched inside each. With
+    ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide)."""
     cells = []
     for robot in robots:
         for filter_name in filters:
@@ -790,6 +795,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                     continue    # a round robot has no footprint to cover, or the filter has no such model
                 settings = ({} if body == "disk" else {"body": body}) | opt_in_settings(
                     filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
+                if min_obstacle_width is not None and unescaped(filter_name) in ("cbf", "mpc"):
+                    settings["min_obstacle_width"] = min_obstacle_width
                 for dt in dts:
                     for base in bases:
                         for give_velocity in ((True, False) if base == "instant" else (True,)):
@@ -797,6 +804,19 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                                               give_velocity=give_velocity, geometry=tuple(geometries),
                                               nominal=tuple(nominals), settings=dict(settings)))
     return cells
+
+
+@functools.cache
+def _sighting(robot: str, filter_name: str, dt: float, settings: str) -> tuple[float, float]:
+    safety = make_filter(unescaped(filter_name), robot_spec(json.loads(robot)), dt, **json.loads(settings))
+    return safety.horizon_reach(), safety.smallest_obstacle
+
+
+def sighting(robot: str | dict[str, Any], filter_name: str, dt: float, settings: Mapping[str, Any]
+             ) -> tuple[float, float]:
+    """How far the robot must see an obstacle to brake clear of it, and the narrowest it sees by then [m]
+    (``SafetyFilter.horizon_reach``, ``SafetyFilter.smallest_obstacle``: assumption A2); once per process."""
+    return _sighting(json.dumps(robot, sort_keys=True), filter_name, dt, json.dumps(dict(settings), sort_keys=True))
 
 
 def cell_margin(cell: dict[str, Any]) -> float:
@@ -809,7 +829,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
     return "/".join((robot_name(cell["robot"]), cell["filter_name"],
                      *([settings["body"]] if "body" in settings else []),
                      *([f"{settings['reference']}-reference"] if "reference" in settings else []),
-                     *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else [])))
+                     *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else []),
+                     *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -855,6 +876,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         help="what the MPC cells track (each a cell of its own): nominal, cbf (default: nominal)")
     parser.add_argument("--mpc-lookahead", type=argument_type(number, low=0.0, high=10.0), default=0.0, metavar="L",
                         help="the MPC cells' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
+    parser.add_argument("--min-obstacle-width", type=argument_type(number, low=0.0, low_open=True, high=10.0),
+                        default=None, metavar="W",
+                        help="tell the CBF and MPC cells the narrowest obstacle to see in time [m] "
+                             "(CBFConfig/MPCConfig.min_obstacle_width; default: what the lidars resolve)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -878,7 +903,7 @@ def _run(args: argparse.Namespace) -> int:
         print(outcome)
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
-                   args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead)
+                   args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

@@ -165,7 +165,8 @@ class Deadlock:
 
     def __str__(self) -> str:
         where = "" if self.point is None else f" at ({self.point[0]:.2f}, {self.point[1]:.2f}) m"
-        return f"deadlocked for {self.time:.1f} s by a {self.family} constraint{where}"
+        article = "an" if self.family[:1] in "aeiou" else "a"
+        return f"deadlocked for {self.time:.1f} s by {article} {self.family} constraint{where}"
 
 
 def progress(u: np.ndarray, u_nom: np.ndarray, scale: np.ndarray) -> float:
@@ -357,6 +358,8 @@ class SafetyFilter(abc.ABC):
         deadlock_time: how long the commands may make less than ``stall_progress`` of the
             nominal's progress, while the nominal asks to move, before the result reports a
             :class:`Deadlock` [s].
+        min_obstacle_width: the narrowest obstacle [m] to see in time to brake clear of; ``None``
+            for what the lidars resolve where the robot must see one (:attr:`smallest_obstacle`).
     """
 
     name = "filter"
@@ -365,7 +368,8 @@ class SafetyFilter(abc.ABC):
     def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None, scan_timeout: float = 0.5,
                  compensate_latency: bool = True, max_gap: float = math.radians(5.0),
                  side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
-                 memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5) -> None:
+                 memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5,
+                 min_obstacle_width: float | None = None) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
         self.robot = robot
@@ -377,6 +381,8 @@ class SafetyFilter(abc.ABC):
         self.side_tolerance = _checks.number("side_tolerance", side_tolerance, low=0.0, high=0.5 * math.pi)
         self.time_constant = _checks.number("time_constant", time_constant, low=0.0, high=MAX_DT)
         self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
+        self.min_obstacle_width = (None if min_obstacle_width is None
+                                   else _checks.positive("min_obstacle_width", min_obstacle_width))
         self._stalled = 0.0
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
@@ -761,6 +767,24 @@ class SafetyFilter(abc.ABC):
         return self.body.reach + self.margin + 2.0 * stop
 
     @property
+    def smallest_obstacle(self) -> float:
+        """The narrowest obstacle [m] the filter sees in time to keep its guarantee (assumption A2).
+
+        An obstacle can hide between two neighbouring beams wherever they are farther apart than it is
+        wide, and comes into view only nearer. The robot must see an obstacle by the time it is
+        :meth:`horizon_reach` away (within the body, the margin and twice the stopping path) to stay
+        able to brake clear of it, and within 1 m to keep the margin (the default margin covers the
+        gap between two beams there). So this is the gap between two beams of the coarsest lidar at
+        ``max(1 m, horizon_reach + its mount's offset)``, or ``min_obstacle_width`` when that is given
+        and smaller: the filter then treats the range beyond which such an obstacle can hide as a
+        horizon it stays able to stop within (:func:`~safenav.filters.perception.horizon_points`).
+        """
+        reach = self.horizon_reach()
+        resolved = max(2.0 * max(1.0, reach + math.hypot(lidar.mount.x, lidar.mount.y))
+                       * math.sin(0.5 * lidar.angle_increment) for lidar in self.robot.lidars)
+        return resolved if self.min_obstacle_width is None else min(resolved, self.min_obstacle_width)
+
+    @property
     def shadow_jump(self) -> float:
         """How much farther [m] a beam's neighbour must read for its hit to be an occluder's edge
         (:func:`~safenav.filters.perception.shadow_points`): four range-noise deviations and the points' spacing
@@ -771,7 +795,7 @@ class SafetyFilter(abc.ABC):
         """Obstacle points (current, the edge of what the lidars see, remembered) and the unknown region of a call."""
         current = beam_points(scans, self.body)
         reach = self.horizon_reach(period)
-        horizon = horizon_points(scans, reach)
+        horizon = horizon_points(scans, reach, self.min_obstacle_width)
         shadows = shadow_points(scans, reach, self.shadow_jump)
         if shadows.shape[0]:
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
@@ -799,9 +823,10 @@ class SafetyFilter(abc.ABC):
             return result
         if not np.any(np.all(view.horizon == np.asarray(reason.point), axis=1)):
             return result
-        told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max, or "
-                                     f"the edge of what an obstacle hides): the robot keeps able to stop within it",
-                      reason.point)
+        told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max, "
+                                     f"the edge of what an obstacle hides, or where an obstacle of "
+                                     f"min_obstacle_width can hide between two beams): the robot keeps able to "
+                                     f"stop within it", reason.point)
         message = result.message.replace(str(reason), str(told), 1) if result.message else str(told)
         return _replace(result, reason=told, message=message)
 

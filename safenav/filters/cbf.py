@@ -105,6 +105,11 @@ class CBFConfig:
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first
             (see :meth:`SafetyFilter.current_frame`).
+        min_obstacle_width: the narrowest obstacle [m] the filter must see in time to brake clear of
+            (``None``: whatever the lidars resolve where the robot must see an obstacle,
+            :attr:`~safenav.filters.SafetyFilter.smallest_obstacle`). Thinner obstacles can hide
+            between two beams until they are near; when this is smaller, the filter keeps able to stop
+            within the range where a beam must hit one (it drives slower).
     """
 
     gamma: float | None = None
@@ -127,6 +132,7 @@ class CBFConfig:
     deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
+    min_obstacle_width: float | None = None
 
     def __post_init__(self) -> None:
         name = "CBFConfig."
@@ -157,6 +163,8 @@ class CBFConfig:
         _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
+        if self.min_obstacle_width is not None:
+            _checks.positive(name + "min_obstacle_width", self.min_obstacle_width)
 
     def resolve(self, robot: RobotSpec, dt: float) -> CBFConfig:
         """This config with every robot-derived default filled in (see :mod:`safenav.filters.defaults`)."""
@@ -252,7 +260,8 @@ class CBFSafetyFilter(SafetyFilter):
     0.2 / omega_max^2)``: steering is preferred to braking.
 
     **Guarantee.** Stated in full, with its assumptions, in ``docs/safety.md``: if the world is
-    static, every obstacle wider than the beam gap 1 m away is seen within ``2 noise_std``
+    static, every obstacle at least :attr:`smallest_obstacle` wide (the beam gap 1 m away, or where
+    the robot must see an obstacle to brake clear of it) is seen within ``2 noise_std``
     by some lidar before the body comes within ``margin`` of it (the part of the body's blind
     region it sweeps was clear when the filter started, or was seen before it got there), the
     base holds each command for at most the period (``dt``, or the measured period when calls
@@ -298,7 +307,7 @@ class CBFSafetyFilter(SafetyFilter):
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
-                         deadlock_time=cfg.deadlock_time)
+                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width)
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])

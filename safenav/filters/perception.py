@@ -128,7 +128,7 @@ def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_dista
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
-def horizon_points(scans: tuple[LaserScan, ...], reach: float) -> np.ndarray:
+def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | None = None) -> np.ndarray:
     """Where what the lidars see ends: a point at ``range_max`` along every ``NO_RETURN`` beam, ``(N, 2)`` [m].
 
     A ``NO_RETURN`` beam says the space is free up to ``range_max``, and nothing beyond it: an
@@ -136,14 +136,25 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float) -> np.ndarray:
     that distance must not drive as if it were free, so the filters treat these points as
     obstacles of the current call (never remembered). Only scans whose ``range_max`` can come
     within ``reach`` [m] of the base origin give any (the tutorial lidars' 12 m and 30 m never do).
+
+    With ``width`` [m], an obstacle that wide is seen for sure only where two neighbouring beams are
+    less than ``width`` apart, up to ``width / (2 sin(angle_increment / 2))`` from the lidar; beyond,
+    it can hide between them. That range is then the horizon when it is nearer than ``range_max``: a
+    point there along every beam that reads farther (a farther hit or ``NO_RETURN``).
     """
     pieces = []
     for scan in scans:
-        if scan.range_max - math.hypot(scan.mount.x, scan.mount.y) > reach:
+        horizon = scan.range_max
+        if width is not None and scan.angle_increment > 0.0:
+            horizon = min(horizon, width / (2.0 * math.sin(0.5 * scan.angle_increment)))
+        if horizon - math.hypot(scan.mount.x, scan.mount.y) > reach:
             continue
-        index = np.flatnonzero(scan.readings == Reading.NO_RETURN)
+        beyond = scan.readings == Reading.NO_RETURN
+        if horizon < scan.range_max:
+            beyond |= (scan.readings == Reading.HIT) & (scan.ranges > horizon)
+        index = np.flatnonzero(beyond)
         if index.size:
-            pieces.append(scan.beam_points(index, np.full(index.size, scan.range_max)))
+            pieces.append(scan.beam_points(index, np.full(index.size, horizon)))
     if not pieces:
         return np.empty((0, 2))
     return pieces[0] if len(pieces) == 1 else np.vstack(pieces)

@@ -3,12 +3,26 @@
 from __future__ import annotations
 
 import json
+import math
+from pathlib import Path
 
 import pytest
 
-from benchmarks.falsify import GEOMETRIES, SEARCHED_NOMINALS, TOLERANCE, Episode, decode, episodes_per_cell, run, search
+from benchmarks.falsify import (
+    GEOMETRIES,
+    SEARCHED_NOMINALS,
+    TOLERANCE,
+    Episode,
+    _cell_key,
+    _cells,
+    decode,
+    episodes_per_cell,
+    run,
+    search,
+)
 from safenav import preset
 from safenav.filters import make_filter
+from safenav.robot import RobotSpec
 
 CELLS = [
     dict(robot="m2wr", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True),
@@ -134,3 +148,22 @@ def test_a_bad_robot_file_names_the_file_and_the_field(tmp_path):
     spec_file.write_text(json.dumps({**preset("rosbot").to_dict(), "wheel_base": 0.2}))
     with pytest.raises(InvalidConfig, match=r"bad\.json: RobotSpec: unknown field 'wheel_base'"):
         falsify.load_robots([str(spec_file)])
+
+
+def test_the_poles_are_as_thin_as_the_filter_claims_to_see_in_time_and_stand_as_far_as_it_must():
+    """A2: a pole at least ``smallest_obstacle`` wide is seen by the time it is ``horizon_reach`` away. The
+    decoder's thinnest poles are that wide, out to that reach; ``--min-obstacle-width`` tells the cells."""
+    fast = json.loads((Path(__file__).resolve().parents[2] / "benchmarks" / "robots" / "fast_slow_braking.json")
+                      .read_text())
+    for settings in ({}, {"min_obstacle_width": 0.02}):
+        safety = make_filter("mpc", RobotSpec.from_dict(fast), 0.05, **settings)
+        low = decode([0.0] * 20, robot=fast, filter_name="mpc", base="ramp", dt=0.05, give_velocity=True,
+                     geometry="poles", nominal="arc", margin=safety.margin, settings=settings)
+        far = decode([0.999] * 3 + [0.0] * 17, robot=fast, filter_name="mpc", base="ramp", dt=0.05,
+                     give_velocity=True, geometry="poles", nominal="arc", margin=safety.margin, settings=settings)
+        assert 2.0 * low.circles[0][2] == pytest.approx(safety.smallest_obstacle, rel=1e-3)
+        assert math.hypot(*far.circles[0][:2]) > safety.horizon_reach() > 7.0
+    cells = _cells(["rosbot"], ["cbf", "mpc+escape", "zones"], ["ramp"], [0.05], ["poles"], ["arc"],
+                   min_obstacle_width=0.02)
+    assert [cell["settings"].get("min_obstacle_width") for cell in cells] == [0.02, 0.02, None]
+    assert _cell_key(cells[0]) == "rosbot/cbf/width-0.02"

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from safenav import InvalidCommand, InvalidCommandType, InvalidScan, InvalidScanType, LaserScan, SafeNavError, preset
 from safenav.filters import BRAKING_STATUSES, CBFSafetyFilter, FilterResult, FilterStatus
+from safenav.filters.base import Deadlock
 from safenav.filters.perception import dead_reckoning
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.synthetic import Circle, Scene, synthetic_scan, wall
@@ -352,3 +353,9 @@ def test_the_memory_and_scan_views_reject_what_filter_rejects_with_the_same_erro
     assert safety.current_scans(scan, velocity=(math.nan, 0.0), scan_age=0.1)[0] is scan
     moved = safety.current_scans(scan, velocity=(0.5, 0.0), scan_age=0.1)[0]
     np.testing.assert_allclose(moved.points(), scan.points() - (0.05, 0.0), atol=1e-9)
+
+
+def test_a_deadlock_reads_as_a_sentence():
+    assert str(Deadlock(1.5, None, "acceleration")) == "deadlocked for 1.5 s by an acceleration constraint"
+    assert str(Deadlock(2.0, (1.0, -0.25), "barrier")) == ("deadlocked for 2.0 s by a barrier constraint "
+                                                           "at (1.00, -0.25) m")

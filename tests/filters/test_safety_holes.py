@@ -19,12 +19,12 @@ import pytest
 import qpsolvers
 
 from benchmarks.falsify import TOLERANCE, Episode, run
-from safenav import preset
-from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
+from safenav import InvalidConfig, preset
+from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter, make_filter
 from safenav.filters import base as filters_base
 from safenav.filters.mpc.filter import SPLIT_SLACK
 from safenav.filters.mpc.sqp import DirectSQP
-from safenav.filters.perception import SHADOW_SPACING, shadow_points
+from safenav.filters.perception import SHADOW_SPACING, horizon_points, shadow_points
 from safenav.robot import LidarSpec, RobotSpec
 from safenav.synthetic import Circle, Scene, Segment, synthetic_scan
 
@@ -159,6 +159,58 @@ def test_an_obstacle_hidden_behind_another_is_not_driven_into_before_it_is_seen(
     assert max(row["u"][0] for row in log) > 0.5        # it still drives
 
 
+def _pole_between_the_beams_ahead(width: float) -> tuple[float, float, float]:
+    """A pole of ``width`` [m] 8 m ahead on the axis, which the 360-beam lidar's two beams at +-0.5 degree
+    straddle: no beam hits it until it is nearer than ``width / (2 sin(0.5 deg))``."""
+    return (8.0, 0.0, 0.5 * width)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_a_pole_too_thin_to_be_seen_in_time_is_outside_the_claim_and_inside_it_with_its_width_given(filter_name):
+    # A2 said every obstacle wider than the gap between two beams 1 m away (1.75 cm here) is seen in time.
+    # Driving at full speed at a 1.8 cm pole between two beams: it comes into view 1.03 m away, and the
+    # robot needs 3.3 m to stop: contact (-0.25 m CBF, -0.14 m MPC). The claim is the gap between two
+    # beams where the robot must see an obstacle to brake clear of it (`smallest_obstacle`, 13 cm here);
+    # a user who needs thinner ones says so (`min_obstacle_width`), and the filter keeps able to stop
+    # within the range where a beam must hit one (points there are obstacles of the call).
+    width = 0.018
+    assert CBFSafetyFilter(FAST, 0.05).smallest_obstacle > 0.1 > width
+    episode = Episode(robot=FAST.to_dict(), filter=filter_name, base="ramp_limit", dt=0.05,
+                      circles=(_pole_between_the_beams_ahead(width),), nominal="arc", params=(2.0, 0.0),
+                      duration=8.0)
+    outcome, _ = run(episode)
+    assert outcome.contact            # outside the claim: what a 360-beam lidar allows at 2 m/s
+    told = dataclasses.replace(episode, settings={"min_obstacle_width": width})
+    assert make_filter(filter_name, FAST, 0.05, min_obstacle_width=width).smallest_obstacle == width
+    log = assert_safe(told)
+    # It drives: the MPC as fast as it can stop within 1.03 m (0.94 m/s), the CBF slower, approaching that
+    # horizon at its exponential rate like any obstacle (0.17 m/s).
+    assert max(row["u"][0] for row in log) > (0.8 if filter_name == "mpc" else 0.1)
+    assert any("an obstacle of min_obstacle_width" in row["message"] for row in log)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_a_pole_as_wide_as_the_claim_between_the_beams_straight_ahead_is_seen_in_time(filter_name):
+    width = make_filter(filter_name, FAST, 0.05).smallest_obstacle + 0.001
+    log = assert_safe(Episode(robot=FAST.to_dict(), filter=filter_name, base="ramp_limit", dt=0.05,
+                              circles=(_pole_between_the_beams_ahead(width),), nominal="arc", params=(2.0, 0.0),
+                              duration=8.0))
+    assert max(row["u"][0] for row in log) > 1.5
+
+
+@pytest.mark.parametrize("name", ["rosbot", "puzzlebot", "m2wr"])
+def test_the_presets_claim_the_beam_gap_one_metre_away_or_at_their_stopping_reach(name):
+    robot = preset(name)
+    for make in (CBFSafetyFilter, MPCSafetyFilter):
+        safety = make(robot, 0.05)
+        gap = robot.lidar.angle_increment
+        lever = math.hypot(robot.lidar.mount.x, robot.lidar.mount.y)
+        expected = 2.0 * max(1.0, safety.horizon_reach() + lever) * math.sin(0.5 * gap)
+        assert safety.smallest_obstacle == pytest.approx(expected)
+        assert safety.smallest_obstacle < 0.02                      # table legs and chair legs
+        assert make(robot, 0.05, min_obstacle_width=0.5).smallest_obstacle == pytest.approx(expected)
+
+
 def test_the_edge_of_what_an_obstacle_hides_is_an_obstacle_of_the_call_only():
     safety = CBFSafetyFilter(FAST, 0.05)
     reach = safety.horizon_reach()
@@ -197,6 +249,34 @@ def test_the_edge_of_what_the_lidars_see_is_an_obstacle_of_the_call_only():
         for safety in (CBFSafetyFilter(robot, 0.05), MPCSafetyFilter(robot, 0.05)):
             assert safety.horizon_reach(1.0) < robot.lidar.range_max
             assert safety._observe((robot.scan(),), 1.0).n_horizon == 0
+
+
+def test_where_an_obstacle_of_the_given_width_can_hide_between_two_beams_is_a_horizon_of_the_call_only():
+    width = 0.05
+    safety = CBFSafetyFilter(FAST, 0.05, min_obstacle_width=width)
+    resolved = width / (2.0 * math.sin(0.5 * FAST.lidar.angle_increment))        # 2.86 m from the lidar
+    scene = Scene.of(Segment((1.0, -0.5), (1.0, 0.5)), Segment((6.0, -3.0), (6.0, 3.0)))
+    scan = synthetic_scan(FAST, scene)
+    ring = horizon_points((scan,), safety.horizon_reach(), width)
+    assert ring.shape[0] > 0 and np.allclose(np.hypot(*ring.T), resolved)
+    # Along every beam that reads farther (the far wall, free space behind), none along the near wall's.
+    bearings = np.arctan2(ring[:, 1], ring[:, 0])
+    assert not np.any(np.abs(bearings) < math.atan2(0.5, 1.0) - FAST.lidar.angle_increment)
+    assert ring.shape[0] == np.count_nonzero(~(scan.ranges < resolved))
+    view = safety._observe((scan,))       # with the near wall's shadow edges
+    assert view.n_horizon > ring.shape[0] and np.isclose(np.hypot(*view.horizon.T), resolved).sum() == ring.shape[0]
+    assert horizon_points((scan,), safety.horizon_reach()).shape[0] == 0      # without the width: none
+    safety.filter((1.0, 0.0), scan, velocity=(0.0, 0.0))
+    assert not np.any(np.isclose(np.hypot(*safety.remembered_points(velocity=(0.0, 0.0)).T), resolved))
+    # Resolved farther than the robot must see: no horizon; and the claim is then the beams' own.
+    wide = CBFSafetyFilter(FAST, 0.05, min_obstacle_width=1.0)
+    assert horizon_points((scan,), wide.horizon_reach(), 1.0).shape[0] == 0
+    assert wide.smallest_obstacle == CBFSafetyFilter(FAST, 0.05).smallest_obstacle
+    for bad in (0.0, -0.01, math.nan, "2 cm"):
+        with pytest.raises(InvalidConfig, match="min_obstacle_width"):
+            CBFSafetyFilter(FAST, 0.05, min_obstacle_width=bad)
+        with pytest.raises(InvalidConfig, match="min_obstacle_width"):
+            MPCSafetyFilter(FAST, 0.05, min_obstacle_width=bad)
 
 
 def test_a_lagging_base_is_commanded_from_the_last_command():

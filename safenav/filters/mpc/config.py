@@ -139,6 +139,11 @@ class MPCConfig:
             result reports a deadlock [s].
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first.
+        min_obstacle_width: the narrowest obstacle [m] the filter must see in time to brake clear of
+            (``None``: whatever the lidars resolve where the robot must see an obstacle,
+            :attr:`~safenav.filters.SafetyFilter.smallest_obstacle`). Thinner obstacles can hide
+            between two beams until they are near; when this is smaller, the filter keeps able to stop
+            within the range where a beam must hit one (it drives slower).
     """
 
     horizon_time: float | None = None
@@ -168,6 +173,7 @@ class MPCConfig:
     deadlock_time: float = 1.5
     scan_timeout: float = 0.5
     compensate_latency: bool = True
+    min_obstacle_width: float | None = None
 
     def __post_init__(self) -> None:
         name = "MPCConfig."
@@ -207,6 +213,8 @@ class MPCConfig:
         _checks.positive(name + "deadlock_time", self.deadlock_time)
         _checks.duration(name + "scan_timeout", self.scan_timeout, high=1e9)
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
+        if self.min_obstacle_width is not None:
+            _checks.positive(name + "min_obstacle_width", self.min_obstacle_width)
 
     def resolve(self, robot: RobotSpec, dt: float) -> MPCConfig:
         """This config with the robot-derived defaults that do not need the plan model filled in.

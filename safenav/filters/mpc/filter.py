@@ -199,7 +199,7 @@ class MPCSafetyFilter(SafetyFilter):
     acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the
     block's length ``T = m dt``) and reports ``LATE``.
 
-    **Guarantee.** If the world is static, every obstacle wider than the beam gap at 1 m is
+    **Guarantee.** If the world is static, every obstacle at least :attr:`smallest_obstacle` wide is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF
     filter and ``docs/safety.md`` for the blind region), the base holds each command for at
     most the period and its velocity over each period stays between the period's start
@@ -257,7 +257,7 @@ class MPCSafetyFilter(SafetyFilter):
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
-                         deadlock_time=cfg.deadlock_time)
+                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width)
         dt = self.dt
         self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
         self.budget = float(cfg.budget)
