@@ -224,6 +224,11 @@ class Escape:
         return self.inner.margin
 
     @property
+    def smallest_obstacle(self) -> float:
+        """The narrowest obstacle [m] the wrapped filter sees in time (its guarantee is the wrapper's)."""
+        return self.inner.smallest_obstacle
+
+    @property
     def clear_half_width(self) -> float:
         """Half-width of a corridor the wrapped filter lets the body drive along [m] (its ``corridor_half_width``)."""
         return self.inner.corridor_half_width

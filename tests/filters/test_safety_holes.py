@@ -209,6 +209,7 @@ def test_the_presets_claim_the_beam_gap_one_metre_away_or_at_their_stopping_reac
         assert safety.smallest_obstacle == pytest.approx(expected)
         assert safety.smallest_obstacle < 0.02                      # table legs and chair legs
         assert make(robot, 0.05, min_obstacle_width=0.5).smallest_obstacle == pytest.approx(expected)
+        assert make_filter(f"{make.name}+escape", robot, 0.05).smallest_obstacle == pytest.approx(expected)
 
 
 def test_the_edge_of_what_an_obstacle_hides_is_an_obstacle_of_the_call_only():
