@@ -300,7 +300,7 @@ class SafetyCore:
             self._info(f"source {source!r}: lidar from its first message: {lidar.n_beams} beams over "
                        f"[{lidar.angle_min:.4f}, {lidar.angle_max:.4f}] rad, "
                        f"{lidar.range_min:g}-{lidar.range_max:g} m, "
-                       f"mount {tuple(round(v, 4) for v in lidar.mount)}")
+                       f"mount {tuple(round(v, 4) for v in lidar.mount)}{self._sighting()}")
             placed = self.robot.match_scan(scan)
         self._confirmed.add(source)
         return placed
@@ -496,13 +496,21 @@ class SafetyCore:
         return False
 
     def describe(self) -> str:
-        """One line for the log at start: topics, filter (with the escape or not), robot, period and sources."""
+        """One line for the log at start: topics, filter (with the escape or not), robot, period, sources, and
+        the narrowest obstacle the filter sees in time (``smallest_obstacle``, assumption A2)."""
         config = self.config
         escape = "with the deadlock escape" if config.escape else "without the deadlock escape (escape: false)"
         return (f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} {escape} "
                 f"for {config.robot.name} every {config.control_period:g} s; sources: "
                 + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
-                            for s in config.sources))
+                            for s in config.sources) + self._sighting())
+
+    def _sighting(self) -> str:
+        """The narrowest obstacle the filter guarantees to see in time, for the log ('' for the zones)."""
+        if self.config.filter == "zones":
+            return ""
+        return (f"; obstacles at least {100.0 * self.filter.smallest_obstacle:.1f} cm wide are seen in time to "
+                f"brake (thinner: set {self.config.filter}.min_obstacle_width)")
 
     def footprint(self) -> np.ndarray:
         """The body outline in the base frame [m]: the footprint polygon, or the disk as 32 vertices."""

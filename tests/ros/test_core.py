@@ -244,6 +244,9 @@ def test_the_escape_is_on_by_default_and_reported_in_the_state_and_the_diagnosti
     core, out, _ = make_core()
     assert core.filter.name == "cbf+escape" and core.state.escape_enabled
     assert "with cbf with the deadlock escape for rosbot" in core.describe()
+    smallest = 100.0 * core.filter.smallest_obstacle
+    assert f"obstacles at least {smallest:.1f} cm wide are seen in time" in core.describe()
+    assert "cm wide" not in make_core(filter="zones")[0].describe()
     assert "without the deadlock escape (escape: false)" in make_core(escape=False)[0].describe()
     _drive_into_a_wall(core, out, 3.0)
     assert all(s.escape_enabled for s in out.states)
