@@ -383,6 +383,18 @@ class SafetyFilter(abc.ABC):
         self.deadlock_time = _checks.positive("deadlock_time", deadlock_time)
         self.min_obstacle_width = (None if min_obstacle_width is None
                                    else _checks.positive("min_obstacle_width", min_obstacle_width))
+        if self.min_obstacle_width is not None:
+            for lidar in robot.lidars:
+                # Beyond this from the lidar such an obstacle can hide between two beams; the robot must stay able
+                # to stop within it, so it must lie beyond the body and the margin.
+                lever, spread = math.hypot(lidar.mount.x, lidar.mount.y), 2.0 * math.sin(0.5 * lidar.angle_increment)
+                if self.min_obstacle_width / spread - lever <= self.body.reach + self.margin:
+                    raise InvalidConfig(
+                        f"min_obstacle_width={self.min_obstacle_width!r} m: the {lidar.n_beams}-beam lidar "
+                        f"{lidar.frame_id!r} sees an obstacle that narrow for sure only within "
+                        f"{self.min_obstacle_width / spread:.3f} m of itself, inside the body and its margin (the "
+                        f"robot could not move); expected more than "
+                        f"{spread * (self.body.reach + self.margin + lever):.4f} m")
         self._stalled = 0.0
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))

@@ -273,7 +273,7 @@ def test_where_an_obstacle_of_the_given_width_can_hide_between_two_beams_is_a_ho
     wide = CBFSafetyFilter(FAST, 0.05, min_obstacle_width=1.0)
     assert horizon_points((scan,), wide.horizon_reach(), 1.0).shape[0] == 0
     assert wide.smallest_obstacle == CBFSafetyFilter(FAST, 0.05).smallest_obstacle
-    for bad in (0.0, -0.01, math.nan, "2 cm"):
+    for bad in (0.0, -0.01, math.nan, "2 cm", 0.004):   # 4 mm: seen for sure only within 0.23 m, inside the body
         with pytest.raises(InvalidConfig, match="min_obstacle_width"):
             CBFSafetyFilter(FAST, 0.05, min_obstacle_width=bad)
         with pytest.raises(InvalidConfig, match="min_obstacle_width"):
