@@ -685,14 +685,23 @@ class BulletSim:
                                          substeps=config.substeps, time_constant=config.time_constant)
         executed = means if factor is None else means * factor
         pose = self._pose
-        min_clearance = math.inf
+        poses = []
         for v, omega in executed.tolist():
             pose = unicycle_step(pose, v, omega, dt)
-            self._physics_steps += 1
-            clearance = self._truth(pose, self._physics_steps * dt)
-            min_clearance = min(min_clearance, clearance)
-            if clearance < 0.0 and self._first_collision is None:
-                self._first_collision = self._physics_steps * dt
+            poses.append(pose)
+        first = self._physics_steps + 1
+        self._physics_steps += len(poses)
+        if self._movers:
+            clearances = [self._truth(each, (first + k) * dt) for k, each in enumerate(poses)]
+        else:   # a static world: every physics step's clearance in one evaluation
+            clearances = (self.world.signed_distance(np.array([(each.x, each.y) for each in poses]))
+                          - self.robot.radius).tolist()
+        min_clearance = min(clearances, default=math.inf)
+        clearance = clearances[-1]
+        if self._first_collision is None:
+            hit = next((k for k, value in enumerate(clearances) if value < 0.0), None)
+            if hit is not None:
+                self._first_collision = (first + hit) * dt
         # The base model carries on from the velocity it reached; the noise factor is not part of its state.
         self._pose, self._tracked = pose, ends[-1]
         self._velocity = ends[-1] if factor is None else ends[-1] * factor
