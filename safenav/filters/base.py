@@ -39,9 +39,11 @@ from safenav.filters.perception import (
     SHADOW_SPACING,
     Frontier,
     PointMemory,
+    beam_gap,
     beam_points,
     dead_reckoning,
     horizon_points,
+    resolved_range,
     shadow_points,
     unknown_region,
 )
@@ -387,14 +389,14 @@ class SafetyFilter(abc.ABC):
             for lidar in robot.lidars:
                 # Beyond this from the lidar such an obstacle can hide between two beams; the robot must stay able
                 # to stop within it, so it must lie beyond the body and the margin.
-                lever, spread = math.hypot(lidar.mount.x, lidar.mount.y), 2.0 * math.sin(0.5 * lidar.angle_increment)
-                if self.min_obstacle_width / spread - lever <= self.body.reach + self.margin:
+                lever = math.hypot(lidar.mount.x, lidar.mount.y)
+                resolved = resolved_range(self.min_obstacle_width, lidar.angle_increment)
+                if resolved - lever <= self.body.reach + self.margin:
                     raise InvalidConfig(
                         f"min_obstacle_width={self.min_obstacle_width!r} m: the {lidar.n_beams}-beam lidar "
-                        f"{lidar.frame_id!r} sees an obstacle that narrow for sure only within "
-                        f"{self.min_obstacle_width / spread:.3f} m of itself, inside the body and its margin (the "
-                        f"robot could not move); expected more than "
-                        f"{spread * (self.body.reach + self.margin + lever):.4f} m")
+                        f"{lidar.frame_id!r} sees an obstacle that narrow for sure only within {resolved:.3f} m of "
+                        f"itself, inside the body and its margin (the robot could not move); expected more than "
+                        f"{beam_gap(self.body.reach + self.margin + lever, lidar.angle_increment):.4f} m")
         self._stalled = 0.0
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
@@ -792,8 +794,8 @@ class SafetyFilter(abc.ABC):
         horizon it stays able to stop within (:func:`~safenav.filters.perception.horizon_points`).
         """
         reach = self.horizon_reach()
-        resolved = max(2.0 * max(1.0, reach + math.hypot(lidar.mount.x, lidar.mount.y))
-                       * math.sin(0.5 * lidar.angle_increment) for lidar in self.robot.lidars)
+        resolved = max(beam_gap(max(1.0, reach + math.hypot(lidar.mount.x, lidar.mount.y)), lidar.angle_increment)
+                       for lidar in self.robot.lidars)
         return resolved if self.min_obstacle_width is None else min(resolved, self.min_obstacle_width)
 
     @property

@@ -42,11 +42,13 @@ __all__ = [
     "START_BLIND_CLEARANCE",
     "Frontier",
     "PointMemory",
+    "beam_gap",
     "beam_points",
     "body_clearance",
     "dead_reckoning",
     "nearest_per_bin",
     "obstacle_beams",
+    "resolved_range",
     "shadow_points",
     "unknown_beams",
     "unknown_region",
@@ -128,6 +130,18 @@ def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_dista
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
+def beam_gap(distance: float, angle_increment: float) -> float:
+    """How far apart two neighbouring beams are ``distance`` [m] from their lidar [m]: the widest obstacle that
+    can stand between them there, unseen (assumption A2; :func:`resolved_range` is the inverse)."""
+    return 2.0 * distance * math.sin(0.5 * angle_increment)
+
+
+def resolved_range(width: float, angle_increment: float) -> float:
+    """How far from its lidar [m] an obstacle ``width`` [m] wide cannot hide between two beams
+    (:func:`beam_gap` is the inverse)."""
+    return width / (2.0 * math.sin(0.5 * angle_increment))
+
+
 def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | None = None) -> np.ndarray:
     """Where what the lidars see ends: a point at ``range_max`` along every ``NO_RETURN`` beam, ``(N, 2)`` [m].
 
@@ -138,7 +152,7 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | No
     within ``reach`` [m] of the base origin give any (the tutorial lidars' 12 m and 30 m never do).
 
     With ``width`` [m], an obstacle that wide is seen for sure only where two neighbouring beams are
-    less than ``width`` apart, up to ``width / (2 sin(angle_increment / 2))`` from the lidar; beyond,
+    less than ``width`` apart, up to :func:`resolved_range` from the lidar; beyond,
     it can hide between them. That range is then the horizon when it is nearer than ``range_max``: a
     point there along every beam that reads farther (a farther hit or ``NO_RETURN``).
     """
@@ -146,7 +160,7 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | No
     for scan in scans:
         horizon = scan.range_max
         if width is not None and scan.angle_increment > 0.0:
-            horizon = min(horizon, width / (2.0 * math.sin(0.5 * scan.angle_increment)))
+            horizon = min(horizon, resolved_range(width, scan.angle_increment))
         if horizon - math.hypot(scan.mount.x, scan.mount.y) > reach:
             continue
         beyond = scan.readings == Reading.NO_RETURN
