@@ -522,6 +522,13 @@ class BulletSim:
             return self.world.clearance_at(pose, self.robot.radius, time)
         return self.world.clearance(pose, self.robot.radius)
 
+    def _truths(self, poses: Sequence[Pose2D], times: Sequence[float]) -> list[float]:
+        """:meth:`_truth` at each of ``poses`` and ``times``; in a static world in one evaluation (the same values)."""
+        if self._movers:
+            return [self._truth(pose, time) for pose, time in zip(poses, times, strict=True)]
+        positions = np.array([(pose.x, pose.y) for pose in poses], dtype=float).reshape(-1, 2)
+        return (self.world.signed_distance(positions) - self.robot.radius).tolist()
+
     def bullet_clearance(self, pose: Pose2D | Sequence[float] | None = None, max_distance: float = 2.0) -> float:
         """Body clearance at ``pose`` measured by PyBullet's ``getClosestPoints`` [m].
 
@@ -691,12 +698,8 @@ class BulletSim:
             poses.append(pose)
         first = self._physics_steps + 1
         self._physics_steps += len(poses)
-        if self._movers:
-            clearances = [self._truth(each, (first + k) * dt) for k, each in enumerate(poses)]
-        else:   # a static world: every physics step's clearance in one evaluation
-            clearances = (self.world.signed_distance(np.array([(each.x, each.y) for each in poses]))
-                          - self.robot.radius).tolist()
-        min_clearance = min(clearances, default=math.inf)
+        clearances = self._truths(poses, [(first + k) * dt for k in range(len(poses))])
+        min_clearance = min(clearances)
         clearance = clearances[-1]
         if self._first_collision is None:
             hit = next((k for k, value in enumerate(clearances) if value < 0.0), None)
