@@ -50,8 +50,8 @@ SLACK_TIERS = ("lost", "inside", "outside")
 _BARRIER = families.FAMILIES.index("barrier")
 #: Look-ahead distance [m] of the single-disk model (steering authority vs 2 l of conservatism head-on).
 DEFAULT_LOOKAHEAD = 0.1
-#: Room [m] beyond twice the look-ahead difference the shortest look-ahead's barrier needs before the
-#: longer one is tried again (hysteresis).
+#: Room [m] the longer look-ahead's own barrier needs, over every point of a call, before it is tried
+#: again after a narrow passage (hysteresis).
 LOOKAHEAD_ROOM = 0.05
 MAX_GENERATION_ROUNDS = 8
 """Rounds of constraint generation before the QP takes every candidate row."""
@@ -224,7 +224,8 @@ class CBFSafetyFilter(SafetyFilter):
     while it drives through a gap the body fits, a door narrower than ``2 (R + lookahead +
     margin)``), and the reason then ends "look-ahead 0 m (a narrow passage)". It switches back only
     to an answer with status ``OK``/``LATE`` (``H >= 0`` for the longer barrier, no relaxation),
-    tried once the shorter barrier exceeds ``2 (lookahead - min_lookahead) + LOOKAHEAD_ROOM``.
+    tried once the flag is cleared and the longer look-ahead's own barrier over the call's points is at
+    least ``LOOKAHEAD_ROOM``.
 
     **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
     ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
@@ -316,7 +317,6 @@ class CBFSafetyFilter(SafetyFilter):
         self._lookaheads = {float(cfg.lookahead): self._reach_of(float(cfg.lookahead)),
                             float(cfg.min_lookahead): self._reach_of(float(cfg.min_lookahead))}
         self._use_lookahead(float(cfg.lookahead))
-        self._short_barrier = -math.inf     # the smallest barrier of the last answer with the shortest look-ahead
         self.backend: QPBackend = make_backend(cfg.solver)
 
     def _reach_of(self, lookahead: float) -> tuple[float, tuple[float, float]]:
@@ -616,9 +616,9 @@ class CBFSafetyFilter(SafetyFilter):
             # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
             # the radius shrinks by it): switching to it is safe at any call.
             self._use_lookahead(shortest)
-        elif self.lookahead == shortest and self._short_barrier >= 2.0 * (longest - shortest) + LOOKAHEAD_ROOM:
-            # Back to the longer look-ahead once there is room for it (its barrier is at least the shorter
-            # one's minus twice the difference) and its answer needs no relaxation.
+        elif self.lookahead == shortest and self._barrier_with(view, longest) >= LOOKAHEAD_ROOM:
+            # Back to the longer look-ahead once there is room for it (its barrier, over every point of this
+            # call, at least LOOKAHEAD_ROOM) and its answer needs no relaxation.
             self._use_lookahead(longest)
             result = self._filter_rows(u_nom, view, velocity, period)
             if result.status in (FilterStatus.OK, FilterStatus.LATE):
@@ -628,13 +628,21 @@ class CBFSafetyFilter(SafetyFilter):
             return self._shortened(self._filter_rows(u_nom, view, velocity, period))
         return self._filter_rows(u_nom, view, velocity, period)
 
+    def _barrier_with(self, view: View, lookahead: float) -> float:
+        """``H`` [m] with the control points ``lookahead`` [m] ahead, over every point of ``view``."""
+        points = view.points
+        if points.shape[0] == 0:
+            return math.inf
+        control = self.body.centres + np.array([lookahead, 0.0])
+        distance = np.hypot(points[:, None, 0] - control[None, :, 0], points[:, None, 1] - control[None, :, 1])
+        reach = self.body.radii[None, :] + lookahead + self.margin + view.uncertainty[:, None]
+        return float((distance - reach).min())
+
     def _on_reset(self) -> None:
         self._use_lookahead(float(self.config.lookahead))
-        self._short_barrier = -math.inf
 
     def _shortened(self, result: FilterResult) -> FilterResult:
         """``result`` (built with the shortest look-ahead) with its reason saying so."""
-        self._short_barrier = result.min_barrier
         if result.reason is None:
             return result
         reason = result.reason

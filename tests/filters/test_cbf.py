@@ -421,6 +421,29 @@ def test_in_a_narrow_passage_the_filter_shortens_its_look_ahead_and_gets_through
     assert used[0] == 0.0 and used[-1] == 0.1
 
 
+@pytest.mark.parametrize("room, back", [(0.1, True), (0.03, False)])
+def test_out_of_a_passage_the_longer_look_ahead_returns_when_its_own_barrier_has_room(room, back):
+    """A wall beside the robot: the longer look-ahead's barrier is the shorter one's less one look-ahead, not
+    two (the bound a head-on point needs). Out of the passage the filter takes the longer look-ahead back as soon
+    as its own barrier over the call's points has ``LOOKAHEAD_ROOM`` (5 cm), and keeps the shorter one while it
+    has less; the answer keeps every row of the look-ahead it used either way. Until 2026-11-27 it waited for
+    the shorter barrier to exceed ``2 l + LOOKAHEAD_ROOM`` (0.25 m), so in clutter a robot that had passed one
+    gap kept the look-ahead that cannot steer, and braked in front of corners it could have turned from."""
+    robot = preset("rosbot")
+    filt = CBFSafetyFilter(robot, DT)
+    side = robot.radius + filt.margin + 0.1 + room        # the longer look-ahead's barrier is `room`
+    scan = synthetic_scan(robot, Scene.of(Segment((-1.0, side), (1.5, side))))
+    filt.passage = True
+    filt.filter((0.3, 0.0), scan, velocity=np.zeros(2))
+    assert filt.lookahead == 0.0
+    filt.passage = False
+    result = filt.filter((0.3, 0.0), scan, velocity=np.zeros(2))
+    assert filt.lookahead == (0.1 if back else 0.0)
+    assert result.min_barrier == pytest.approx(room if back else room + 0.1, abs=2e-3)
+    checker = CBFSafetyFilter(robot, DT, lookahead=filt.lookahead, min_lookahead=filt.lookahead)
+    assert np.all(full_residual(checker, result.u_nom, scan, np.zeros(2), result.u) <= 1e-6)
+
+
 def test_without_the_passage_flag_the_look_ahead_stays_and_the_body_stops_and_reset_restores_it():
     robot = preset("rosbot")
     held, narrow = CBFSafetyFilter(robot, DT), CBFSafetyFilter(robot, DT)
