@@ -177,6 +177,12 @@ class LidarSpec:
                                 "got None")
         if self.cloud is not None and not isinstance(self.cloud, CloudSlice):
             raise InvalidConfig(f"LidarSpec.cloud must be a CloudSlice or None, got {self.cloud!r}")
+        if self.n_beams > 1 and not self.angle_max > self.angle_min:
+            raise InvalidConfig(
+                f"LidarSpec.angle_max={self.angle_max!r} must be greater than angle_min={self.angle_min!r}: describe "
+                f"the beams counter-clockwise (angle_min={self.angle_max!r}, angle_max={self.angle_min!r} for a driver "
+                f"that publishes them clockwise, angle_increment < 0; its scans are stored counter-clockwise when read)"
+            )
         # The template scan validates angles (radians), range limits and the mount.
         try:
             template = self.scan()

@@ -364,7 +364,11 @@ class LaserScan:
         angle_min: angle of beam 0 in the laser frame [rad].
         angle_max: angle of the last beam in the laser frame [rad] (informative:
             beam angles are always ``angle_min + i * angle_increment``).
-        angle_increment: angle between beams [rad], > 0.
+        angle_increment: angle between beams [rad], > 0. A clockwise scan (``angle_increment < 0``, as
+            drivers of lidars mounted upside down or spinning clockwise publish it) is stored in
+            counter-clockwise order at construction: ``ranges`` and ``intensities`` reversed,
+            ``angle_min`` its last beam, ``angle_max`` its first, ``time_increment`` negated; every
+            beam keeps its direction.
         ranges: range readings [m], REP-117 special values allowed.
         range_min: smallest range the sensor reports [m].
         range_max: largest range the sensor reports [m].
@@ -404,12 +408,14 @@ class LaserScan:
             put(name, _real(name, getattr(self, name)))
         ranges = _real_array("ranges", self.ranges)
         intensities = _real_array("intensities", self.intensities)
-        put("intensities", intensities)
         n = ranges.size
         if n == 0:
             raise InvalidScan("ranges is empty; expected at least one beam")
-        if self.angle_increment <= 0.0:
-            raise InvalidScan(f"angle_increment must be > 0, got {self.angle_increment!r}")
+        if self.angle_increment == 0.0:
+            raise InvalidScan(f"angle_increment must be nonzero, got {self.angle_increment!r}")
+        if self.angle_increment < 0.0:
+            ranges, intensities = self._counter_clockwise(ranges, intensities)
+        put("intensities", intensities)
         if self.range_min < 0.0:
             raise InvalidScan(f"range_min must be >= 0, got {self.range_min!r}")
         if self.range_max <= self.range_min:
@@ -442,6 +448,35 @@ class LaserScan:
         if self.no_return is not None:
             choice("no_return convention", self.no_return, NO_RETURN_CONVENTIONS)
         put("ranges", _mark_no_returns(ranges, self.no_return, self.range_max))
+
+    def _counter_clockwise(self, ranges: np.ndarray, intensities: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Store a clockwise scan (``angle_increment < 0``) in counter-clockwise order; returns its readings so.
+
+        Beam ``i`` of the message, at ``angle_min + i * angle_increment``, becomes beam ``n - 1 - i``: the
+        stored ``angle_min`` is the message's last beam, ``angle_max`` its first, the increment positive and
+        ``time_increment`` negated (stored beam ``j`` was measured ``j * time_increment`` after stored beam 0).
+        """
+        put = functools.partial(object.__setattr__, self)
+        n, step = ranges.size, self.angle_increment
+        last = self.angle_min + (n - 1) * step
+        expected = (self.angle_max - self.angle_min) / step + 1.0
+        if abs(expected - n) > COUNT_TOLERANCE:
+            raise InvalidScan(
+                f"ranges has {n} values but angle_min={self.angle_min!r}, angle_max={self.angle_max!r} and "
+                f"angle_increment={step!r} describe {expected:.3f} beams; a clockwise scan (angle_increment < 0) "
+                f"ends at angle_max = angle_min + (n - 1) * angle_increment = {last!r}"
+            )
+        put("angle_max", self.angle_min)
+        put("angle_min", last)
+        put("angle_increment", -step)
+        put("time_increment", -self.time_increment)
+
+        def reverse(values: np.ndarray) -> np.ndarray:
+            flipped = np.ascontiguousarray(values[::-1])
+            flipped.flags.writeable = False
+            return flipped
+
+        return reverse(ranges), reverse(intensities)
 
     # ------------------------------------------------------------------ construction
 

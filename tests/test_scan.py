@@ -6,7 +6,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from safenav import InvalidScan, InvalidScanType, LaserScan, Pose2D, Reading, SectorState, UnknownName, preset
+from safenav import (
+    InvalidConfig,
+    InvalidScan,
+    InvalidScanType,
+    LaserScan,
+    LidarSpec,
+    Pose2D,
+    Reading,
+    SectorState,
+    UnknownName,
+    preset,
+)
 from safenav.geometry import wrap_angle
 from safenav.synthetic import Scene, synthetic_scan, wall
 
@@ -185,8 +196,9 @@ BAD_SCANS = [
     (dict(ranges=[]), InvalidScan, "ranges is empty"),
     (dict(ranges=[1.0, 2.0]), InvalidScan, "ranges has 2 values"),
     (dict(ranges=np.ones(9)), InvalidScan, "ranges has 9 values"),
-    (dict(angle_increment=0.0), InvalidScan, "angle_increment must be > 0"),
-    (dict(angle_increment=-math.pi / 4), InvalidScan, "angle_increment must be > 0"),
+    (dict(angle_increment=0.0), InvalidScan, "angle_increment must be nonzero, got 0.0"),
+    # clockwise, but angle_max where a counter-clockwise scan would end (SICK NAV310's driver publishes this)
+    (dict(angle_increment=-math.pi / 4), InvalidScan, "a clockwise scan (angle_increment < 0) ends at angle_max"),
     (dict(angle_min=math.nan), InvalidScan, "angle_min must be finite"),
     (dict(angle_max=math.inf), InvalidScan, "angle_max must be finite"),
     (dict(range_min=10.0), InvalidScan, "range_max must be > range_min"),
@@ -220,6 +232,57 @@ def test_bad_scans_raise_naming_the_field(changes, exception, fragment):
         make_scan(**changes)
     assert type(info.value) is exception
     assert fragment in str(info.value)
+
+
+# ------------------------------------------------------------------ clockwise scans
+
+def test_a_clockwise_scan_is_stored_counter_clockwise_with_every_beam_where_it_looked():
+    """Drivers of lidars spinning clockwise or mounted upside down publish ``angle_increment < 0``
+    (``angle_max = angle_min + (n - 1) * angle_increment < angle_min``); ROS allows it. The scan keeps
+    every reading in its direction, stored counter-clockwise: the same points, readings, sectors and
+    filter answers as the counter-clockwise message of the same beams."""
+    ranges, intensities = [1.0, math.inf, 3.0, -math.inf, math.nan], [10.0, 20.0, 30.0, 40.0, 50.0]
+    clockwise = make_scan(angle_min=HALF_PI, angle_max=-HALF_PI, angle_increment=-math.pi / 4, ranges=ranges,
+                          intensities=intensities, time_increment=0.001, mount=(0.1, 0.0, math.pi))
+    twin = make_scan(ranges=ranges[::-1], intensities=intensities[::-1], time_increment=-0.001,
+                     mount=(0.1, 0.0, math.pi))
+    for name in ("angle_min", "angle_max", "angle_increment", "time_increment"):
+        assert getattr(clockwise, name) == pytest.approx(getattr(twin, name), abs=1e-12), name
+    np.testing.assert_array_equal(clockwise.ranges, twin.ranges)
+    np.testing.assert_array_equal(clockwise.intensities, twin.intensities)
+    np.testing.assert_array_equal(clockwise.readings, twin.readings)
+    np.testing.assert_allclose(clockwise.points(), twin.points(), atol=1e-12)
+    # the message's beam 0 looked at +90 deg in the laser frame, backwards-mounted: -90 deg on the base
+    assert clockwise.ranges[-1] == 1.0 and clockwise.angles[-1] == pytest.approx(HALF_PI)
+    assert clockwise.beam_index(-HALF_PI) == 4
+    assert not clockwise.ranges.flags.writeable and not clockwise.intensities.flags.writeable
+    assert clockwise.replace(frame_id="other").angle_increment == pytest.approx(math.pi / 4)
+
+
+def test_a_clockwise_message_reads_like_its_counter_clockwise_twin_in_both_filters(lidar_data):
+    """A real recorded scan (the ROS 1 bag of the shared data) sent clockwise: both filters answer as for
+    the message as recorded."""
+    from safenav.datasets import load_rosbag
+    from safenav.filters import CBFSafetyFilter, MPCSafetyFilter
+
+    recorded = load_rosbag(lidar_data / "scan_tools-laser_scan_matcher-demo.bag", limit=1)[0].scan
+    message = ros1_like(angle_min=recorded.angle_min + (recorded.n_beams - 1) * recorded.angle_increment,
+                        angle_max=recorded.angle_min, angle_increment=-recorded.angle_increment,
+                        range_min=recorded.range_min, range_max=recorded.range_max,
+                        ranges=tuple(recorded.ranges[::-1]), time_increment=0.0)
+    clockwise = LaserScan.from_msg(message)
+    np.testing.assert_allclose(clockwise.points(), recorded.points(), atol=1e-9)
+    robot = preset("rosbot").replace(lidar=LidarSpec.from_scan(recorded, mount=(0.05, 0.0, 0.0)))
+    for cls in (CBFSafetyFilter, MPCSafetyFilter):
+        answers = [cls(robot, 0.05).filter((0.5, 0.3), scan, velocity=(0.3, 0.0)) for scan in (recorded, clockwise)]
+        np.testing.assert_allclose(answers[0].u, answers[1].u, atol=1e-9)
+        assert answers[0].status is answers[1].status
+
+
+def test_a_lidar_described_clockwise_is_refused_with_its_counter_clockwise_description():
+    with pytest.raises(InvalidConfig) as info:
+        LidarSpec(n_beams=5, angle_min=HALF_PI, angle_max=-HALF_PI, range_min=0.1, range_max=5.0)
+    assert f"angle_min={-HALF_PI!r}, angle_max={HALF_PI!r}" in str(info.value)
 
 
 def test_off_by_one_beam_count_of_some_drivers_is_accepted():

@@ -303,6 +303,28 @@ def test_several_sources_each_with_its_mount_and_timeout():
     assert state.status == "stale" and "source 'rear'" in state.reason
 
 
+def clockwise(message: SimpleNamespace) -> SimpleNamespace:
+    """The same beams published clockwise (``angle_increment < 0``), as a driver of an upside-down lidar does."""
+    n = len(message.ranges)
+    return SimpleNamespace(**{**vars(message), "ranges": message.ranges[::-1],
+                              "angle_increment": -message.angle_increment, "angle_max": message.angle_min,
+                              "angle_min": message.angle_min + (n - 1) * message.angle_increment})
+
+
+def test_a_driver_that_publishes_clockwise_is_filtered_as_its_counter_clockwise_twin():
+    commands, statuses = [], []
+    for convert in (lambda message: message, clockwise):
+        core, out, _ = make_core()
+        core.on_command(twist(0.5, 0.0), 0.0)
+        for step in range(4):
+            core.on_scan("scan", convert(scan_message(0.6 - 0.02 * step)), 0.05 * step)
+            statuses.append(core.tick(0.05 * step, out).status)
+        assert core.state.intervened
+        commands.append(out.commands)
+    assert statuses == ["ok"] * 8
+    np.testing.assert_allclose(commands[0], commands[1], atol=1e-9)
+
+
 def test_a_driver_layout_is_learned_from_the_first_message_and_a_later_change_is_malformed():
     core, out, _ = make_core()
     other = preset("puzzlebot").lidar           # 360 beams over 0..2pi: not the ROSbot preset's layout
