@@ -200,15 +200,18 @@ def shadow_points(scans: tuple[LaserScan, ...], reach: float, jump: float) -> np
         near = hit & (ranges < reach + lever - SHADOW_SPACING)
         if not near.any():
             continue
-        farther = np.where(readings == Reading.NO_RETURN, math.inf, np.where(hit, ranges, -math.inf))
-        wraps = scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9
+        farther = np.where(hit, ranges, -math.inf)
+        farther[readings == Reading.NO_RETURN] = math.inf
+        beyond = ranges + jump
+        # A beam is an occluder's edge when a neighbour (the previous or the next, round the turn for a full
+        # scan) reads farther by more than the jump.
         edge = np.zeros(scan.n_beams, dtype=bool)
-        for shift in (1, -1):
-            other = np.roll(farther, shift)
-            if not wraps:
-                other[0 if shift == 1 else -1] = -math.inf
-            edge |= near & (other > ranges + jump)
-        index = np.flatnonzero(edge)
+        edge[1:] = farther[:-1] > beyond[1:]
+        edge[:-1] |= farther[1:] > beyond[:-1]
+        if scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9:
+            edge[0] |= farther[-1] > beyond[0]
+            edge[-1] |= farther[0] > beyond[-1]
+        index = np.flatnonzero(edge & near)
         if not index.size:
             continue
         steps = np.floor((reach + lever - ranges[index]) / SHADOW_SPACING).astype(np.intp)

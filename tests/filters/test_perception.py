@@ -10,13 +10,16 @@ measurements, store them again).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from safenav.base_models import BASE_MODELS, period_velocities
-from safenav.filters.perception import PointMemory, dead_reckoning
+from safenav.filters.perception import SHADOW_SPACING, PointMemory, dead_reckoning, shadow_points
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import preset
+from safenav.scan import Reading
 
 SUBSTEPS = 20
 TIME_CONSTANT = 0.04
@@ -105,3 +108,50 @@ def test_the_estimate_is_the_trapezoid_and_the_bound_half_the_change():
     assert motion.x == pytest.approx(0.025) and motion.y == 0.0 and motion.yaw == 0.0
     assert translation == pytest.approx(0.025)
     assert rotation == 0.0
+
+
+# ------------------------------------------------------------------ the edges of what obstacles hide
+
+
+def _shadow_edges_by_hand(scan, reach: float, jump: float) -> set[int]:
+    """The beams whose neighbour (the previous or the next; round the turn only for a full-turn scan) reads
+    farther by more than ``jump`` (no return: infinitely far; invalid or too close: never), hit within reach."""
+    n, lever = scan.n_beams, math.hypot(scan.mount.x, scan.mount.y)
+    wraps = n * scan.angle_increment >= 2.0 * math.pi - 1e-9
+
+    def far(i: int) -> float:
+        reading = scan.readings[i]
+        return math.inf if reading == Reading.NO_RETURN else scan.ranges[i] if reading == Reading.HIT else -math.inf
+
+    edges = set()
+    for i in range(n):
+        if scan.readings[i] != Reading.HIT or not scan.ranges[i] < reach + lever - SHADOW_SPACING:
+            continue
+        neighbours = [j % n for j in (i - 1, i + 1) if wraps or 0 <= j < n]
+        if any(far(j) > scan.ranges[i] + jump for j in neighbours):
+            edges.add(i)
+    return edges
+
+
+@pytest.mark.parametrize("name", ["rosbot", "puzzlebot", "m2wr"])
+def test_shadow_edges_are_the_beams_a_neighbour_sees_past_round_the_turn_only_for_a_full_turn(name):
+    """The points of :func:`shadow_points` start one spacing beyond exactly the hand-computed edge beams, on
+    random readings (hits, no returns, invalid, too close), a full-turn lidar's first and last beams being
+    neighbours and a 180-degree lidar's not."""
+    robot = preset(name)
+    rng = np.random.default_rng(7)
+    reach, jump = 1.5, 0.3
+    for _ in range(50):
+        ranges = rng.uniform(0.2, 3.0, robot.lidar.n_beams)
+        kind = rng.uniform(size=ranges.size)
+        ranges[kind < 0.1] = math.inf
+        ranges[(kind >= 0.1) & (kind < 0.15)] = math.nan
+        ranges[(kind >= 0.15) & (kind < 0.17)] = -math.inf
+        ranges[0], ranges[-1] = 0.5, 2.5 if rng.uniform() < 0.5 else 0.5      # the wrap, either way
+        scan = robot.lidar.scan(ranges)
+        points = shadow_points((scan,), reach, jump)
+        lever = math.hypot(scan.mount.x, scan.mount.y)
+        expected = [scan.beam_points(np.array([i]), np.array([scan.ranges[i] + k * SHADOW_SPACING]))[0]
+                    for i in sorted(_shadow_edges_by_hand(scan, reach, jump))
+                    for k in range(1, math.floor((reach + lever - scan.ranges[i]) / SHADOW_SPACING) + 1)]
+        np.testing.assert_allclose(points, np.array(expected).reshape(-1, 2), atol=1e-9)
