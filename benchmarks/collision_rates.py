@@ -44,6 +44,7 @@ from typing import Any
 
 from benchmarks.common import names, opt_in_settings, run_cli, run_sweep, sweep_parser, where, write_json
 from safenav._checks import argument_type, integer, number, positive, writable_file
+from safenav.errors import InvalidConfig
 from safenav.experiments import (
     EpisodeOutcome,
     EpisodeSpec,
@@ -57,10 +58,12 @@ from safenav.experiments import (
 from safenav.experiments.runner import reproducible_settings, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
-from safenav.filters import FILTER_NAMES, FILTERS
+from safenav.filters import FILTER_NAMES, FILTERS, unescaped
+from safenav.filters.cbf import BODIES as CBF_BODIES
+from safenav.filters.mpc.config import BODIES as MPC_BODIES
 from safenav.filters.mpc.config import REFERENCES
 from safenav.scenarios import scenario
-from safenav.sim_bullet import SimConfig
+from safenav.sim_bullet import TRUTH_BODIES, SimConfig
 
 FULL_SEEDS = 20
 """Seeds per cell of the default sweep: 19 (scenario, policy) pairs x 7 filters x 20 = 2660 episodes."""
@@ -107,6 +110,13 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cbf-smoothing", metavar="S", type=argument_type(number, low=0.0, high=100.0),
                         default=0.0, help="the CBF rows' penalty on the change from the previous command, relative "
                                           "to the nominal's (CBFConfig.smoothing; 0: none, the default filter)")
+    parser.add_argument("--body", choices=CBF_BODIES, default="disk",
+                        help="the CBF and MPC rows' body model (CBFConfig / MPCConfig.body; the MPC has disk and "
+                             "cover) (default: disk)")
+    parser.add_argument("--truth", choices=TRUTH_BODIES, default=None,
+                        help="what body the simulator's clearance and collisions are measured for "
+                             "(SimConfig.truth): disk (the circumscribed disk) or footprint (default: footprint "
+                             "with --body cover or polygon, else disk)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -139,8 +149,14 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.range_noise is not None:
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
                  for spec in specs]
+    truth = args.truth or ("disk" if args.body == "disk" else "footprint")
+    if args.body not in MPC_BODIES and any(unescaped(name) == "mpc" for name in filters):
+        raise InvalidConfig(f"--body {args.body}: the MPC's body models are {', '.join(MPC_BODIES)}; "
+                            "leave the mpc filters out (--filters) or choose another body")
+    if truth != "disk":
+        specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "truth": truth}) for spec in specs]
     specs = tuned(specs, mpc_reference=args.mpc_reference, mpc_lookahead=args.mpc_lookahead,
-                  cbf_smoothing=args.cbf_smoothing)
+                  cbf_smoothing=args.cbf_smoothing, body=args.body)
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
@@ -148,7 +164,9 @@ def _sweep(args: argparse.Namespace) -> int:
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
           f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}"
           f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}"
-          f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}")
+          f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}"
+          f"{f'; body model {args.body}' if args.body != 'disk' else ''}"
+          f"{f'; clearance measured for the {truth}' if truth != 'disk' else ''}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))
@@ -183,6 +201,8 @@ def _sweep(args: argparse.Namespace) -> int:
         "mpc_reference": args.mpc_reference,
         "mpc_lookahead": args.mpc_lookahead,
         "cbf_smoothing": args.cbf_smoothing,
+        "body": args.body,
+        "truth": truth,
         "episodes": len(specs),
         "workers": args.workers,
         "backend": args.backend,
@@ -201,13 +221,13 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str = "nominal", mpc_lookahead: float = 0.0,
-          cbf_smoothing: float = 0.0) -> list[EpisodeSpec]:
+          cbf_smoothing: float = 0.0, body: str = "disk") -> list[EpisodeSpec]:
     """The specs with the sweep's opt-in filter settings: the MPC rows' reference and look-ahead, the CBF rows'
-    smoothing (with or without the escape); the defaults leave every spec as it is."""
+    smoothing, both filters' body model (with or without the escape); the defaults leave every spec as it is."""
     tuned_specs = []
     for spec in specs:
         extra = opt_in_settings(spec.filter, mpc_reference=mpc_reference, mpc_lookahead=mpc_lookahead,
-                                cbf_smoothing=cbf_smoothing)
+                                cbf_smoothing=cbf_smoothing, body=body)
         tuned_specs.append(dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **extra})
                            if extra else spec)
     return tuned_specs

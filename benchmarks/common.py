@@ -137,15 +137,17 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str
 
 
 def opt_in_settings(filter_name: str, *, mpc_reference: str = "nominal", mpc_lookahead: float = 0.0,
-                    cbf_smoothing: float = 0.0) -> dict[str, Any]:
+                    cbf_smoothing: float = 0.0, body: str = "disk") -> dict[str, Any]:
     """A benchmark's opt-in settings that apply to ``filter_name`` (with or without the escape): the MPC's
-    reference and look-ahead, the CBF's smoothing; empty for the defaults, and for every other filter."""
+    reference and look-ahead, the CBF's smoothing, both filters' body model; empty for the defaults, and for
+    every other filter."""
     base = unescaped(filter_name)
+    shape = {} if body == "disk" else {"body": body}
     if base == "mpc":
         return ({} if mpc_reference == "nominal" else {"reference": mpc_reference}) | (
-            {"lookahead": mpc_lookahead} if mpc_lookahead else {})
+            {"lookahead": mpc_lookahead} if mpc_lookahead else {}) | shape
     if base == "cbf":
-        return {"smoothing": cbf_smoothing} if cbf_smoothing else {}
+        return ({"smoothing": cbf_smoothing} if cbf_smoothing else {}) | shape
     return {}
 
 

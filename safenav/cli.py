@@ -139,6 +139,8 @@ def _demo(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     from safenav.experiments import EpisodeSpec, run_spec
     from safenav.filters import unescaped
+    from safenav.filters.cbf import BODIES as CBF_BODIES
+    from safenav.filters.mpc.config import BODIES as MPC_BODIES
     from safenav.scenarios import scenario, scenario_name
     from safenav.sim_bullet import gui_problem
 
@@ -160,13 +162,23 @@ def _run(args: argparse.Namespace) -> int:
         if unescaped(filter_name) != "mpc":
             raise InvalidConfig(f"{flag} applies to --filter mpc ({what}); got --filter {args.filter}")
         options[field] = value
+    sim_options = {}
+    if args.body != "disk":
+        bodies = {"cbf": CBF_BODIES, "mpc": MPC_BODIES}.get(unescaped(filter_name), ())
+        if args.body not in bodies:
+            raise InvalidConfig(f"--body {args.body} applies to --filter cbf (disk, polygon, cover) or mpc (disk, "
+                                f"cover); got --filter {args.filter}")
+        options["body"] = args.body
+        sim_options["truth"] = "footprint"      # the body the filter's guarantee is for
     spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,
-                       record=plot is not None or gif is not None, record_scans=gif is not None, gui=args.gui)
+                       sim_options=sim_options, record=plot is not None or gif is not None,
+                       record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
     _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
          f"policy {policy}, filter {filter_name}"
          f"{f' ({args.mpc_reference} reference)' if args.mpc_reference else ''}"
-         f"{f' (look-ahead {args.mpc_lookahead:g} m)' if args.mpc_lookahead else ''}, up to {duration:g} s")
+         f"{f' (look-ahead {args.mpc_lookahead:g} m)' if args.mpc_lookahead else ''}"
+         f"{f' (body {args.body}; clearances of the footprint)' if args.body != 'disk' else ''}, up to {duration:g} s")
     outcome = run_spec(spec)
     _print_summary(outcome)
     title = f"{name}, seed {args.seed}\n{policy} + filter {filter_name}"
@@ -296,6 +308,7 @@ def _benchmark_lines(table: Mapping[str, tuple[str, str]]) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """The ``safenav`` argument parser (one sub-command per job)."""
     from safenav.filters import FILTER_NAMES
+    from safenav.filters.cbf import BODIES as CBF_BODIES
     from safenav.filters.mpc.config import REFERENCES
     from safenav.reference import POLICY_NAMES
     from safenav.robot import PRESET_NAMES
@@ -363,6 +376,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
                      help="with --filter mpc, its look-ahead control disk [m] (MPCConfig.lookahead: planned, never "
                           "verified; it turns the plan round what is ahead) (default: 0, none)")
+    run.add_argument("--body", metavar="B", type=name_type("body model", CBF_BODIES), default="disk",
+                     help="with --filter cbf or mpc, the body its rows keep clear: disk (the circumscribed disk, "
+                          "the default), polygon (the footprint; CBF only) or cover (disks covering it); the "
+                          "simulator then measures the footprint's clearance")
     run.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                      help="seed of the world, the start and the noise (default: 0)")
     run.add_argument("--duration", metavar="T", type=argument_type(positive), default=None,

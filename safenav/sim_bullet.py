@@ -53,8 +53,13 @@ Model, and why:
   :attr:`SimState.scan` the main lidar's.
 * **Truth**: the body clearance is exact and analytic (:meth:`World.clearance
   <safenav.worlds.World.clearance>` on the true circles and rectangles), evaluated at
-  every physics step for the first-collision time. :meth:`BulletSim.bullet_clearance`
-  measures the same thing with PyBullet's ``getClosestPoints`` for cross-checks.
+  every physics step for the first-collision time. The body is the robot's circumscribed
+  disk by default; ``SimConfig(truth="footprint")`` measures its convex footprint instead,
+  turning with the heading (:meth:`World.footprint_clearance
+  <safenav.worlds.World.footprint_clearance>`: the guarantee of a filter with
+  ``body="polygon"`` or ``"cover"``, which a disk's contact would misreport).
+  :meth:`BulletSim.bullet_clearance` measures the disk's with PyBullet's ``getClosestPoints``
+  for cross-checks.
 
 Noise and delays (all off by default except the preset's lidar noise), drawn from the
 ``sensor`` and ``actuation`` streams of the seed (:mod:`safenav.seeding`), so the same seed
@@ -166,6 +171,22 @@ _ABSENT_DEPTH = -1000.0   # [m]: where a moving obstacle that does not exist wai
 _HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit fraction, position, normal)
 _RAY_BATCH_LIMIT = 16384   # pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE: rays rayTestBatch takes in one call
 
+#: What body the simulator's exact clearance is measured for (:attr:`SimConfig.truth`).
+TRUTH_BODIES = ("disk", "footprint")
+
+
+def _convex_footprint(robot: RobotSpec) -> np.ndarray | None:
+    """The robot's footprint for the footprint truth ``(V, 2)`` [m] (convex); ``None`` for a round robot."""
+    if robot.footprint is None:
+        return None
+    polygon = np.asarray(robot.footprint, dtype=float)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+    if not (np.all(turns >= -1e-12) or np.all(turns <= 1e-12)):
+        raise InvalidConfig(f"SimConfig(truth='footprint') needs a convex footprint, got {robot.footprint!r}; "
+                            "use truth='disk' (its circumscribed disk) for a concave one")
+    return polygon
+
 
 class _CastLidar(NamedTuple):
     """One lidar as the simulator casts it: its rays' place in the batch, true mount and noise."""
@@ -222,6 +243,11 @@ class SimConfig:
             * ``"lag"``: first-order lag ``dv/dt = (command - v) / base_time_constant``,
               integrated exactly over each physics step.
         base_time_constant: time constant of the ``"lag"`` base [s]; ``control_dt`` when ``None``.
+        truth: what body the exact clearance (:meth:`BulletSim.clearance`, collisions, ``min_clearance``)
+            is measured for: ``"disk"`` (default: the circumscribed disk of radius ``robot.radius``) or
+            ``"footprint"`` (the robot's convex ``footprint`` polygon, turning with the heading: the
+            guarantee of a filter built with ``body="polygon"`` or ``"cover"``; a robot without a
+            footprint is round, and keeps its disk).
     """
 
     control_dt: float = 0.05
@@ -238,6 +264,7 @@ class SimConfig:
     cylinder_tolerance: float = 0.001
     base: str = BASE_MODELS[0]
     base_time_constant: float | None = None
+    truth: str = "disk"
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -262,6 +289,7 @@ class SimConfig:
         put(self, "base", choice("base model (SimConfig.base)", self.base, BASE_MODELS))
         if self.base_time_constant is not None:
             put(self, "base_time_constant", positive("SimConfig.base_time_constant", self.base_time_constant))
+        put(self, "truth", choice("clearance body (SimConfig.truth)", self.truth, TRUTH_BODIES))
 
     @property
     def time_constant(self) -> float:
@@ -365,6 +393,7 @@ class BulletSim:
         self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
+        self._footprint = None if config.truth == "disk" else _convex_footprint(robot)
         self._mover_bodies = [self._build_mover(mover.shape) for mover in self._movers]
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
@@ -511,21 +540,36 @@ class BulletSim:
         """Exact signed body clearance at ``pose`` (the current pose by default) [m].
 
         Args:
-            pose: the base pose (or position) [m].
+            pose: the base pose (or, with the disk truth, its position) [m, m, rad].
             time: where the moving obstacles are [s]; the current time by default.
         """
         return self._truth(self.state.pose if pose is None else pose, self.state.time if time is None else time)
 
     def _truth(self, pose: Pose2D | Sequence[float], time: float) -> float:
         """Exact signed body clearance at ``pose`` with the moving obstacles where they are at ``time`` [m]."""
+        if self._footprint is not None:
+            if len(pose) != 3:
+                raise InvalidConfig(f"BulletSim.clearance: with SimConfig(truth='footprint') the pose needs its yaw "
+                                    f"(x [m], y [m], yaw [rad]): the footprint turns with it; got {tuple(pose)!r}")
+            return self._truths([Pose2D(*pose)], [time])[0]
+        return self._disk_truth(pose, time)
+
+    def _disk_truth(self, position: Pose2D | Sequence[float], time: float) -> float:
+        """Exact signed clearance of the body disk at ``position`` at ``time`` [m]."""
         if self._movers:
-            return self.world.clearance_at(pose, self.robot.radius, time)
-        return self.world.clearance(pose, self.robot.radius)
+            return self.world.clearance_at(position, self.robot.radius, time)
+        return self.world.clearance(position, self.robot.radius)
 
     def _truths(self, poses: Sequence[Pose2D], times: Sequence[float]) -> list[float]:
         """:meth:`_truth` at each of ``poses`` and ``times``; in a static world in one evaluation (the same values)."""
+        if self._footprint is not None:
+            placed = np.array([(pose.x, pose.y, pose.yaw) for pose in poses], dtype=float).reshape(-1, 3)
+            if self._movers:
+                return [float(self.world.footprint_clearance_at(row[None], self._footprint, time)[0])
+                        for row, time in zip(placed, times, strict=True)]
+            return self.world.footprint_clearance(placed, self._footprint).tolist()
         if self._movers:
-            return [self._truth(pose, time) for pose, time in zip(poses, times, strict=True)]
+            return [self._disk_truth(pose, time) for pose, time in zip(poses, times, strict=True)]
         positions = np.array([(pose.x, pose.y) for pose in poses], dtype=float).reshape(-1, 2)
         return (self.world.signed_distance(positions) - self.robot.radius).tolist()
 
@@ -628,10 +672,10 @@ class BulletSim:
 
     def _sensor_inside(self, cast: _CastLidar, pose: Pose2D, clearance: float | None, time: float) -> bool:
         """Whether the lidar sits inside an obstacle at ``time`` (only possible when the body overlaps one)."""
-        if clearance is not None and clearance >= cast.mount_offset - self.robot.radius:
+        if clearance is not None and self._footprint is None and clearance >= cast.mount_offset - self.robot.radius:
             return False
         sensor = pose.compose(cast.true_mount)
-        return self._truth((sensor.x, sensor.y), time) + self.robot.radius < 0.0
+        return self._disk_truth((sensor.x, sensor.y), time) + self.robot.radius < 0.0
 
     # ------------------------------------------------------------------ episode
 

@@ -243,6 +243,18 @@ def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, 
     assert "zones" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("argv", "body"), [(["--filter", "cbf", "--body", "polygon"], "polygon"),
+                                             (["--filter", "mpc", "--body", "cover"], "cover")])
+def test_run_passes_the_body_and_measures_the_footprint(argv, body, capsys, monkeypatch):
+    spec = run_spec_of(["--robot", "m2wr", *argv], monkeypatch)
+    assert dict(spec.filter_options)["body"] == body and dict(spec.sim_options) == {"truth": "footprint"}
+    assert f"(body {body}; clearances of the footprint)" in capsys.readouterr().out
+    assert dict(run_spec_of(["--filter", "cbf"], monkeypatch).sim_options) == {}      # the disk, as shipped
+    for filter_name, body_name in (("zones", "cover"), ("mpc", "polygon")):
+        assert main(["run", "--filter", filter_name, "--body", body_name]) == 2
+        assert f"--body {body_name} applies to --filter cbf" in capsys.readouterr().err
+
+
 def test_run_passes_the_mpc_lookahead_and_refuses_it_for_another_filter(capsys, monkeypatch):
     spec = run_spec_of(["--filter", "mpc", "--no-escape", "--mpc-lookahead", "0.1"], monkeypatch)
     assert dict(spec.filter_options) == {"lookahead": 0.1} and spec.filter == "mpc"

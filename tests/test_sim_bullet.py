@@ -212,6 +212,42 @@ def test_driving_into_a_wall_raises_the_collision_flag_at_the_right_time():
     assert states[-1].first_collision_time == first.first_collision_time
 
 
+@pytest.mark.parametrize("yaw", [0.0, 0.5 * math.pi])
+def test_with_the_footprint_truth_the_m2wr_touches_a_wall_when_its_box_does_not_its_disk(yaw):
+    """The m2wr (a 0.5 x 0.3 m box in a 0.292 m disk) driven head-on into a wall, along x or along y: with
+    ``truth="footprint"`` the contact comes when the box's front reaches the wall, (R - 0.25) / v later than the
+    disk's. The clearance turns with the heading: a quarter turn at the start puts the long side 0.15 m from
+    the centre towards the wall."""
+    robot = preset("m2wr")
+    start = Pose2D(0.0, 0.0, yaw)
+    world = World("wall", (wall_ahead(start, 1.0),), start=start)
+    times = {}
+    for truth in ("disk", "footprint"):
+        with BulletSim(world, robot, SimConfig(range_noise=0.0, base="instant", truth=truth)) as sim:
+            state = sim.reset()
+            assert state.clearance == pytest.approx(1.0 - (robot.radius if truth == "disk" else 0.25), abs=1e-9)
+            states = [sim.step((0.5, 0.0)) for _ in range(60)]
+            times[truth] = next(s for s in states if s.collided).first_collision_time
+            assert sim.clearance(Pose2D(0.0, 0.0, yaw + 0.5 * math.pi)) == pytest.approx(
+                1.0 - (robot.radius if truth == "disk" else 0.15), abs=1e-9)
+    assert times["footprint"] - times["disk"] == pytest.approx((robot.radius - 0.25) / 0.5, abs=0.011)
+
+
+def test_the_footprint_truth_needs_a_convex_footprint_and_a_pose_with_its_yaw_and_a_round_robot_keeps_its_disk():
+    world = World("empty", (Cylinder((5.0, 5.0), 0.1),))
+    with BulletSim(world, preset("puzzlebot"), SimConfig(truth="footprint")) as sim:      # round: its disk
+        assert sim.reset().clearance == pytest.approx(world.clearance(world.start, preset("puzzlebot").radius))
+    concave = preset("m2wr").replace(footprint=((0.25, 0.15), (0.0, 0.0), (-0.25, 0.15), (-0.25, -0.15), (0.25, -0.15)))
+    with pytest.raises(InvalidConfig, match="needs a convex footprint"):
+        BulletSim(world, concave, SimConfig(truth="footprint"))
+    with BulletSim(world, preset("m2wr"), SimConfig(truth="footprint")) as sim:
+        sim.reset()
+        with pytest.raises(InvalidConfig, match=r"the pose needs its yaw \(x \[m\], y \[m\], yaw \[rad\]\)"):
+            sim.clearance((1.0, 1.0))
+    with pytest.raises(UnknownName, match=r"SimConfig\.truth"):
+        SimConfig(truth="hull")
+
+
 def test_a_robot_far_from_everything_never_collides():
     robot = preset("m2wr")
     world = World("far", (Wall((-10.0, 10.0), (10.0, 10.0)), Cylinder((8.0, -8.0), 1.0)))

@@ -165,6 +165,11 @@ class DynamicWorld(World):
         """Exact signed clearance of the body disk at ``time`` [s], static obstacles and movers [m]."""
         return float(self.signed_distance_at(np.array([[pose[0], pose[1]]]), time)[0]) - radius
 
+    def footprint_clearance_at(self, poses: np.ndarray, footprint: np.ndarray, time: float) -> np.ndarray:
+        """Exact signed clearance [m] of a convex footprint at ``poses`` ``(K, 3)`` at ``time`` [s], static
+        obstacles and movers (:meth:`World.footprint_clearance`)."""
+        return self.snapshot(time).footprint_clearance(poses, footprint)
+
     def snapshot(self, time: float) -> World:
         """The world frozen at ``time`` [s]: a static :class:`World` with the movers where they are."""
         return World(f"{self.name}@{time:g}s", (*self.obstacles, *self.obstacles_at(time)), self.start, self.goal,

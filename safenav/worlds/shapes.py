@@ -231,3 +231,73 @@ def gap(a: Obstacle, b: Obstacle) -> float:
                 return float(min(a.signed_distance(corners_b).min(), b.signed_distance(corners_a).min()))
             depth = min(depth, overlap)
     return -depth
+
+
+def box_corners(boxes: np.ndarray) -> np.ndarray:
+    """``(M, 4, 2)`` the corners, counter-clockwise, of the boxes of :func:`box_array` [m]."""
+    local = np.array([(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)])
+    x = local[None, :, 0] * boxes[:, None, 2]
+    y = local[None, :, 1] * boxes[:, None, 3]
+    c, s = boxes[:, None, 4], boxes[:, None, 5]
+    return np.stack((boxes[:, None, 0] + c * x - s * y, boxes[:, None, 1] + s * x + c * y), axis=-1)
+
+
+def _segment_distances(points: np.ndarray, start: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """Distance [m] from ``points`` to the segments ``start`` .. ``start + edge`` (broadcast over the leading axes)."""
+    relative = points - start
+    t = np.clip(np.sum(relative * edge, axis=-1) / np.sum(edge * edge, axis=-1), 0.0, 1.0)
+    return np.hypot(*np.moveaxis(relative - t[..., None] * edge, -1, 0))
+
+
+def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray, circles: np.ndarray) -> np.ndarray:
+    """Exact signed distance ``(K,)`` [m] from each convex polygon to the nearest box or circle.
+
+    Args:
+        polygons: ``(K, V, 2)`` convex polygons, counter-clockwise [m].
+        boxes: ``(M, 6)`` rows of :func:`box_array`.
+        circles: ``(C, 3)`` rows ``(cx, cy, radius)`` [m].
+
+    Returns:
+        Per polygon, the distance to the nearest obstacle when apart, minus the penetration depth (the
+        shortest translation that separates them) when they overlap; ``inf`` without obstacles.
+    """
+    start = polygons
+    edge = np.roll(polygons, -1, axis=1) - polygons                        # (K, V, 2)
+    normal = np.stack((edge[..., 1], -edge[..., 0]), axis=-1) / np.hypot(edge[..., 0], edge[..., 1])[..., None]
+    best = np.full(polygons.shape[0], math.inf)
+    if boxes.size:
+        corners = box_corners(boxes)                                        # (M, 4, 2)
+        # Separating axes: the polygon's edge normals (the box's corners beyond each edge) and the box's.
+        beyond = np.einsum("kvmcd,kvd->kvmc", corners[None, None] - start[:, :, None, None], normal)
+        separation = beyond.min(axis=3).max(axis=1)                         # (K, M)
+        box_edge = np.roll(corners, -1, axis=1) - corners
+        box_normal = np.stack((box_edge[..., 1], -box_edge[..., 0]), axis=-1) / np.hypot(
+            box_edge[..., 0], box_edge[..., 1])[..., None]                 # (M, 4, 2)
+        outside = np.einsum("kvmed,med->kvme", polygons[:, :, None, None] - corners[None, None], box_normal)
+        separation = np.maximum(separation, outside.min(axis=1).max(axis=2))
+        # Apart, the nearest pair is a corner of one and a side of the other.
+        corner_to_box = box_distance(polygons.reshape(-1, 2), boxes).reshape(polygons.shape[0], -1,
+                                                                             boxes.shape[0]).min(axis=1)
+        box_to_polygon = _segment_distances(corners[None, :, :, None], start[:, None, None], edge[:, None, None])
+        apart = np.minimum(corner_to_box, box_to_polygon.min(axis=(2, 3)))
+        best = np.minimum(best, np.where(separation > 0.0, apart, separation).min(axis=1))
+    if circles.size:
+        centres = circles[None, None, :, :2]                                # (1, 1, C, 2)
+        relative = centres - start[:, :, None]                              # (K, V, C, 2)
+        depth = np.einsum("kvcd,kvd->kvc", relative, normal).max(axis=1)    # < 0 inside the polygon
+        nearest = _segment_distances(centres, start[:, :, None], edge[:, :, None]).min(axis=1)
+        signed = np.where(depth < 0.0, depth, nearest) - circles[None, :, 2]
+        best = np.minimum(best, signed.min(axis=1))
+    return best
+
+
+def placed_polygons(poses: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """``(K, V, 2)`` the base-frame ``polygon`` ``(V, 2)`` at each of ``poses`` ``(K, 3)``, counter-clockwise [m]."""
+    polygon = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    if area2 < 0.0:
+        polygon = polygon[::-1]
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+    return np.stack((poses[:, None, 0] + c * polygon[None, :, 0] - s * polygon[None, :, 1],
+                     poses[:, None, 1] + s * polygon[None, :, 0] + c * polygon[None, :, 1]), axis=-1)

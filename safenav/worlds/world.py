@@ -22,7 +22,17 @@ from safenav._checks import positive, vector
 from safenav.errors import InvalidConfig
 from safenav.geometry import Pose2D
 from safenav.synthetic import Circle, Scene, Segment
-from safenav.worlds.shapes import Box, Cylinder, Obstacle, Wall, box_array, box_distance, primitive
+from safenav.worlds.shapes import (
+    Box,
+    Cylinder,
+    Obstacle,
+    Wall,
+    box_array,
+    box_distance,
+    placed_polygons,
+    polygon_gaps,
+    primitive,
+)
 
 __all__ = ["World", "obstacle_mesh"]
 
@@ -122,6 +132,19 @@ class World:
             overlaps an obstacle (minus the depth), ``inf`` in a world without obstacles.
         """
         return float(self.signed_distance(np.array([[pose[0], pose[1]]]))[0]) - radius
+
+    def footprint_clearance(self, poses: np.ndarray, footprint: np.ndarray) -> np.ndarray:
+        """Exact signed clearance [m] of a convex footprint at each of ``poses`` to the nearest obstacle.
+
+        Args:
+            poses: ``(K, 3)`` base poses ``(x, y, yaw)`` [m, m, rad].
+            footprint: ``(V, 2)`` the convex body polygon in the base frame [m], either orientation.
+
+        Returns:
+            ``(K,)`` distances from the polygon to the nearest obstacle [m]: negative when it overlaps one
+            (minus the penetration depth), ``inf`` in a world without obstacles.
+        """
+        return polygon_gaps(placed_polygons(poses, footprint), self._boxes, self._circles)
 
     def scene(self) -> Scene:
         """The obstacle outlines as a :class:`~safenav.synthetic.Scene` for exact analytic ray casts.

@@ -130,3 +130,18 @@ def test_the_opt_in_settings_reach_their_own_rows_only():
     assert tuned["cbf"] == tuned["cbf+escape"] == {"smoothing": 2.0}
     assert tuned["mpc"] == tuned["mpc+escape"] == {"reference": "cbf", "lookahead": 0.1}
     assert tuned["zones"] == {}
+
+
+@pytest.mark.sim
+def test_a_body_model_is_measured_with_the_footprint_truth_and_the_mpc_refuses_the_polygon(tmp_path, capsys):
+    printed, report = _one_episode(tmp_path, capsys, "goal_m2wr", "cbf,mpc", "--body", "cover")
+    assert "body model cover; clearance measured for the footprint" in printed
+    assert (report["config"]["body"], report["config"]["truth"]) == ("cover", "footprint")
+    tuned = {spec.filter: dict(spec.filter_options) for spec in collision_rates.tuned(
+        collision_rates.episode_specs(collision_rates.matrix(["goal_m2wr"], None, ["zones", "cbf", "mpc+escape"]),
+                                      range(1)), body="cover")}
+    assert tuned == {"zones": {}, "cbf": {"body": "cover"}, "mpc+escape": {"body": "cover"}}
+    printed, report = _one_episode(tmp_path, capsys, "goal_m2wr", "cbf", "--truth", "footprint")
+    assert (report["config"]["body"], report["config"]["truth"]) == ("disk", "footprint")
+    assert collision_rates.main(["--scenarios", "goal_m2wr", "--filters", "cbf,mpc", "--body", "polygon"]) == 2
+    assert "--body polygon: the MPC's body models are disk, cover" in capsys.readouterr().err

@@ -46,3 +46,51 @@ def test_obstacle_mesh_is_closed_prisms_of_the_world():
     edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
     _, counts = np.unique(edges, axis=0, return_counts=True)
     assert np.all(counts == 2)   # watertight: every edge is shared by two triangles
+
+
+# ------------------------------------------------------------------ the footprint's clearance
+
+M2WR_BOX = np.array([(0.25, 0.15), (-0.25, 0.15), (-0.25, -0.15), (0.25, -0.15)])
+
+
+@pytest.mark.parametrize("yaw, expected", [(0.0, 0.75), (0.5 * np.pi, 0.85), (np.pi, 0.75),
+                                           (0.25 * np.pi, 1.0 - 0.4 * np.cos(0.25 * np.pi))])
+def test_a_footprint_facing_a_wall_keeps_the_distance_of_its_farthest_corner_along_the_normal(yaw, expected):
+    world = World("wall", (Box((1.5, 0.0), (1.0, 4.0)),))                # the near face at x = 1
+    assert world.footprint_clearance(np.array([[0.0, 0.0, yaw]]), M2WR_BOX)[0] == pytest.approx(expected, abs=1e-12)
+    assert world.footprint_clearance(np.array([[0.0, 0.0, yaw]]), M2WR_BOX[::-1])[0] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("obstacle, pose, expected", [
+    (Cylinder((1.0, 0.0), 0.1), (0.0, 0.0, 0.0), 0.65),                  # ahead of the front side
+    (Cylinder((1.0, 0.0), 0.1), (0.0, 0.0, 0.5 * np.pi), 0.75),          # beside the long side
+    (Cylinder((0.45, 0.35), 0.1), (0.0, 0.0, 0.0), np.hypot(0.2, 0.2) - 0.1),   # off the corner
+    (Cylinder((0.1, 0.0), 0.05), (0.0, 0.0, 0.0), -0.2),                 # the centre 0.15 m inside: depth + radius
+    (Box((0.7, 0.0), (1.0, 4.0)), (0.0, 0.0, 0.0), -0.05),               # the front 5 cm into a wall
+    # a post inside the body turned by 0.3 rad: out across the short side, its half-width and the post's reach
+    (Box((0.0, 0.0), (0.1, 0.1)), (0.0, 0.0, 0.3), -0.15 - 0.05 * (np.cos(0.3) + np.sin(0.3))),
+])
+def test_footprint_clearance_is_exact_apart_and_minus_the_penetration_depth_in_overlap(obstacle, pose, expected):
+    world = World("one", (obstacle,))
+    assert world.footprint_clearance(np.array([pose]), M2WR_BOX)[0] == pytest.approx(expected, abs=1e-12)
+
+
+def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_disks():
+    """An independent implementation (the falsifier's, on the world's outlines as segments and circles) gives
+    the same distance wherever both see the footprint apart; the footprint, inside its disk, is never nearer."""
+    from benchmarks.falsify import _footprint_clearances
+
+    rng = np.random.default_rng(11)
+    for name in ("m2wr", "rosbot"):
+        robot = preset(name)
+        footprint = np.asarray(robot.footprint)
+        for seed in range(3):
+            world = random_world(seed=seed, robot=robot)
+            poses = np.column_stack((rng.uniform(-5.0, 5.0, (1500, 2)), rng.uniform(-np.pi, np.pi, 1500)))
+            ours = world.footprint_clearance(poses, footprint)
+            theirs = _footprint_clearances(world.scene(), poses, footprint)
+            apart = (ours > 0.0) & (theirs > 0.0)
+            assert apart.sum() > 900
+            np.testing.assert_allclose(ours[apart], theirs[apart], atol=1e-12)
+            assert not np.any((ours > 0.0) & (theirs <= 0.0))
+            assert np.all(ours >= world.signed_distance(poses[:, :2]) - robot.radius - 1e-12)
