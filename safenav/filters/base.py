@@ -421,11 +421,11 @@ class SafetyFilter(abc.ABC):
     def corridor_half_width(self) -> float:
         """Half-width [m] of the narrowest straight corridor the filter lets the body drive along.
 
-        The body's radius plus the margin; a filter whose rows look further ahead (the CBF's
-        ``min_lookahead``, with :attr:`passage` set) adds that. A passage narrower than twice this
-        holds the body back.
+        The body's half-width (the disk's radius; a cover's or a polygon's lateral extent) plus the
+        margin; a filter whose rows look further ahead (the CBF's ``min_lookahead``, with
+        :attr:`passage` set) adds that. A passage narrower than twice this holds the body back.
         """
-        return self.robot.radius + self.margin
+        return self.body.half_width + self.margin
 
     # ------------------------------------------------------------------ hooks
 

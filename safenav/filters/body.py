@@ -148,6 +148,14 @@ class BodyModel:
         """Largest distance from the base origin to any point of the disks [m]."""
         return float(np.max(np.hypot(self.centres[:, 0], self.centres[:, 1]) + self.radii))
 
+    @property
+    def half_width(self) -> float:
+        """Largest distance of the body (its polygon, or its disks) from the base's x axis [m]: half the width
+        of the narrowest straight corridor it drives along."""
+        if self.name == "polygon":
+            return float(np.max(np.abs(self.outline[:, 1])))
+        return float(np.max(np.abs(self.centres[:, 1]) + self.radii))
+
     def clearance(self, points: np.ndarray) -> float:
         """Smallest distance from the body (its disks or polygon) to ``points`` ``(N, 2)`` [m] (``inf`` if none)."""
         points = np.asarray(points, dtype=float).reshape(-1, 2)

@@ -458,7 +458,7 @@ class Escape:
             self._way_out(known, keep)
         if self._out is not None:
             return self._steer(self._out, speed, turn)
-        ahead = _corridor(points, 0.0, robot.radius + self.margin, keep + 0.1)
+        ahead = _corridor(points, 0.0, self.clear_half_width, keep + 0.1)
         if not ahead and min(self._stalled, self._still) >= STALLED_ESCAPE and self._turn_left <= 0.0:
             # The filter blocks following and the robot stands still: turn, and for long enough.
             self._turn_left, self._stalled = cfg.stall_turn, 0.0

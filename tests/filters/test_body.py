@@ -108,3 +108,18 @@ def test_the_polygon_cbf_passes_a_door_of_body_width_plus_margins_plus_5_cm(name
     disk, _ = run(Episode(robot=name, filter="cbf", base="ramp_limit", dt=0.05, segments=door(width),
                           nominal="goal", params=(3.0, 0.0), duration=12.0))
     assert disk.goal_distance > 1.0        # the circumscribed disk does not fit: the reason for the polygon
+
+
+@pytest.mark.parametrize("body, half_width", [("disk", 0.292), ("cover", math.hypot(0.25 / 3, 0.15)),
+                                              ("polygon", 0.15)])
+def test_the_corridor_a_body_drives_along_is_its_own_width_and_the_escape_looks_for_that(body, half_width):
+    """``corridor_half_width`` (what the escape's gap search and clear ways use) is the body model's lateral
+    extent plus the margin: the disk's radius, a cover's disks, the polygon's half-width, not always the disk's."""
+    from safenav.filters.escape import Escape
+
+    robot = preset("m2wr")
+    for name in ("cbf", "mpc") if body != "polygon" else ("cbf",):
+        safety = make_filter(name, robot, 0.05, body=body)
+        assert safety.body.half_width == pytest.approx(half_width, abs=1e-3)
+        assert safety.corridor_half_width == pytest.approx(half_width + safety.margin, abs=1e-3)
+        assert Escape(safety).clear_half_width == safety.corridor_half_width
