@@ -60,9 +60,10 @@ A corridor is **clear** when the body fits along it with the wrapped filter's ma
 or remembered point (the escape looks at the scans and the memory where the wrapped filter will see
 them in this call: :meth:`~safenav.filters.SafetyFilter.current_scans`,
 :meth:`~safenav.filters.SafetyFilter.remembered_points`) closer to its centre line than
-``R + margin + lookahead`` (the radius of the robot's disk, the filter's margin, and the
-look-ahead of a filter that keeps a control point ahead of the body that far from every point,
-as the CBF does: its straight path needs exactly that much room), with some lidar looking at
+the filter's ``corridor_half_width`` (the body's half-width, the disk's radius or a cover's or
+polygon's lateral extent; the filter's margin; and the look-ahead of a filter that keeps a control
+point ahead of the body that far from every point, as the CBF does: its straight path needs exactly
+that much room), with some lidar looking at
 least partly along it. No further tolerance: the escape decides progress only, never safety (its
 commands go through the filter), and a corridor wider than the filter needs hides the doors the
 filter would let the body through.
