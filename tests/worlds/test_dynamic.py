@@ -128,6 +128,22 @@ def test_a_collision_with_a_mover_is_recorded_when_it_happens():
     assert state.first_collision_time == pytest.approx(3.0 - 0.2 - robot.radius, abs=0.01 + 1e-9)
 
 
+@pytest.mark.sim
+def test_with_the_footprint_truth_a_head_on_walker_meets_the_m2wr_s_box_not_its_disk():
+    """A walker coming head-on at 1 m/s meets the m2wr's front side (0.25 m ahead of the base) with
+    ``truth="footprint"``, (R - 0.25) later than its disk; the clearance with movers is the snapshot's."""
+    robot = preset("m2wr")
+    walker = head_on(START, distance=3.0, speed=1.0, radius=0.2)
+    world = DynamicWorld("head-on", (), movers=(walker,))
+    with BulletSim(world, robot, SimConfig(range_noise=0.0, truth="footprint"), seed=0) as sim:
+        state = sim.reset()
+        while state.first_collision_time is None and state.time < 5.0:
+            state = sim.step((0.0, 0.0))
+            assert state.clearance == pytest.approx(
+                world.snapshot(state.time).footprint_clearance(np.array([tuple(state.pose)]), robot.footprint)[0])
+    assert state.first_collision_time == pytest.approx(3.0 - 0.2 - 0.25, abs=0.01 + 1e-9)
+
+
 # ---------------------------------------------------------------------------------------------- seeding
 
 
