@@ -166,8 +166,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.body != "disk":
         bodies = {"cbf": CBF_BODIES, "mpc": MPC_BODIES}.get(unescaped(filter_name), ())
         if args.body not in bodies:
-            raise InvalidConfig(f"--body {args.body} applies to --filter cbf (disk, polygon, cover) or mpc (disk, "
-                                f"cover); got --filter {args.filter}")
+            raise InvalidConfig(f"--body {args.body} applies to --filter cbf ({', '.join(CBF_BODIES)}) or mpc "
+                                f"({', '.join(MPC_BODIES)}); got --filter {args.filter}")
         options["body"] = args.body
         sim_options["truth"] = "footprint"      # the body the filter's guarantee is for
     spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Pose2D", "unicycle_rollout", "unicycle_step", "wrap_angle"]
+__all__ = ["Pose2D", "counter_clockwise", "is_convex", "unicycle_rollout", "unicycle_step", "wrap_angle"]
 
 TWO_PI = 2.0 * math.pi
 
@@ -47,6 +47,21 @@ class Pose2D(NamedTuple):
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         p = np.asarray(points, dtype=float)
         return np.column_stack((self.x + c * p[:, 0] - s * p[:, 1], self.y + s * p[:, 0] + c * p[:, 1]))
+
+
+def counter_clockwise(polygon: np.ndarray) -> np.ndarray:
+    """A copy of the polygon ``(V, 2)`` [m] with its vertices in counter-clockwise order."""
+    polygon = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    return polygon[::-1].copy() if area2 < 0 else polygon.copy()
+
+
+def is_convex(polygon: np.ndarray) -> bool:
+    """Whether the polygon ``(V, 2)`` [m], in either orientation, is convex (no turn the other way)."""
+    ordered = counter_clockwise(polygon)
+    edges = np.roll(ordered, -1, axis=0) - ordered
+    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+    return bool(np.all(turns >= -1e-12))
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:

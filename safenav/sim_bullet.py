@@ -113,7 +113,7 @@ from safenav._checks import boolean, choice, integer, number, positive
 from safenav._optional import require
 from safenav.base_models import BASE_MODELS, period_velocities
 from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
-from safenav.geometry import Pose2D, unicycle_step
+from safenav.geometry import Pose2D, is_convex, unicycle_step
 from safenav.robot import LidarSpec, RobotSpec, as_command
 from safenav.scan import LaserScan
 from safenav.seeding import generator, stream
@@ -179,13 +179,10 @@ def _convex_footprint(robot: RobotSpec) -> np.ndarray | None:
     """The robot's footprint for the footprint truth ``(V, 2)`` [m] (convex); ``None`` for a round robot."""
     if robot.footprint is None:
         return None
-    polygon = np.asarray(robot.footprint, dtype=float)
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
-    if not (np.all(turns >= -1e-12) or np.all(turns <= 1e-12)):
+    if not is_convex(robot.footprint):
         raise InvalidConfig(f"SimConfig(truth='footprint') needs a convex footprint, got {robot.footprint!r}; "
                             "use truth='disk' (its circumscribed disk) for a concave one")
-    return polygon
+    return np.asarray(robot.footprint, dtype=float)
 
 
 class _CastLidar(NamedTuple):

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from safenav import _checks
+from safenav.geometry import counter_clockwise, is_convex
 from safenav.robot import RobotSpec
 
 __all__ = ["BodyModel", "inside_polygon", "polygon_distance"]
@@ -105,10 +106,8 @@ class BodyModel:
         """
         if robot.footprint is None:
             return cls.disk(robot)
-        polygon = _counter_clockwise(np.asarray(robot.footprint, dtype=float))
-        edges = np.roll(polygon, -1, axis=0) - polygon
-        turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
-        if np.any(turns < -1e-12):
+        polygon = counter_clockwise(robot.footprint)
+        if not is_convex(polygon):
             raise _checks.InvalidConfig(f"the polygon body model needs a convex footprint, got {robot.footprint!r}; "
                                         "use body='cover' for a concave one")
         return cls(np.zeros((1, 2)), np.array([robot.radius]), polygon, "polygon")
@@ -122,7 +121,7 @@ class BodyModel:
         n_disks = _checks.integer("n_disks", n_disks, low=1, high=16)
         if robot.footprint is None:
             return cls.disk(robot)
-        polygon = _counter_clockwise(np.asarray(robot.footprint, dtype=float))
+        polygon = counter_clockwise(robot.footprint)
         low, high = polygon.min(axis=0), polygon.max(axis=0)
         size = high - low
         axis = 0
@@ -194,11 +193,6 @@ class BodyModel:
                                    grid[:, None, 1] - self.centres[None, :, 1]) <= self.radii[None], axis=1)
         in_outline = polygon_distance(self.outline, grid) <= 0.0
         return float(np.count_nonzero(in_disks & ~in_outline)) / max(float(np.count_nonzero(in_outline)), 1.0)
-
-
-def _counter_clockwise(polygon: np.ndarray) -> np.ndarray:
-    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
-    return polygon[::-1].copy() if area2 < 0 else polygon.copy()
 
 
 @functools.lru_cache(maxsize=32)

@@ -159,7 +159,7 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | No
     pieces = []
     for scan in scans:
         horizon = scan.range_max
-        if width is not None and scan.angle_increment > 0.0:
+        if width is not None:
             horizon = min(horizon, resolved_range(width, scan.angle_increment))
         if horizon - math.hypot(scan.mount.x, scan.mount.y) > reach:
             continue

@@ -25,6 +25,7 @@ from safenav import _checks
 from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
 from safenav.filters.body import inside_polygon
+from safenav.geometry import counter_clockwise
 from safenav.robot import RobotSpec
 
 __all__ = ["ZonesConfig", "ZonesFilter", "inflate_footprint"]
@@ -44,10 +45,7 @@ def inflate_footprint(robot: RobotSpec, distance: float, segments: int = 64, *, 
     if disk or robot.footprint is None:
         angles = np.arange(segments) * step
         return (robot.radius + distance) * scale * np.column_stack((np.cos(angles), np.sin(angles)))
-    corners = np.asarray(robot.footprint, dtype=float)
-    area2 = np.sum(corners[:, 0] * np.roll(corners[:, 1], -1) - np.roll(corners[:, 0], -1) * corners[:, 1])
-    if area2 < 0:   # make it counter-clockwise
-        corners = corners[::-1]
+    corners = counter_clockwise(robot.footprint)
     edges = np.roll(corners, -1, axis=0) - corners
     normals = np.column_stack((edges[:, 1], -edges[:, 0])) / np.hypot(edges[:, 0], edges[:, 1])[:, None]
     vertices = []

@@ -22,6 +22,7 @@ import numpy as np
 
 from safenav._checks import number, positive, vector
 from safenav.errors import InvalidConfig
+from safenav.geometry import counter_clockwise
 
 __all__ = ["WALL_THICKNESS", "Box", "Cylinder", "Obstacle", "Wall", "gap", "room"]
 
@@ -293,10 +294,7 @@ def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray, circles: np.ndarray) -
 
 def placed_polygons(poses: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """``(K, V, 2)`` the base-frame ``polygon`` ``(V, 2)`` at each of ``poses`` ``(K, 3)``, counter-clockwise [m]."""
-    polygon = np.asarray(polygon, dtype=float).reshape(-1, 2)
-    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
-    if area2 < 0.0:
-        polygon = polygon[::-1]
+    polygon = counter_clockwise(polygon)
     poses = np.asarray(poses, dtype=float).reshape(-1, 3)
     c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
     return np.stack((poses[:, None, 0] + c * polygon[None, :, 0] - s * polygon[None, :, 1],
