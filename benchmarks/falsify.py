@@ -52,6 +52,7 @@ from safenav._optional import require
 from safenav.errors import InvalidConfig
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
 from safenav.filters import make_filter, unescaped
+from safenav.filters.body import BodyModel
 from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
@@ -108,8 +109,9 @@ class Episode:
         escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
         passage: ``(period, duty)``: the adversary sets the filter's ``passage`` flag (the CBF's
             narrow look-ahead) for the first ``duty`` share of every ``period`` [s]; empty: never.
-            The guarantee holds whatever a caller does with the flag. Not with ``escape`` (the
-            escape sets it itself).
+            With a ``narrow_body`` in the settings it sets ``narrow`` with it (as the escape does in a
+            gap). The guarantee holds whatever a caller does with the flags. Not with ``escape`` (the
+            escape sets them itself).
     """
 
     robot: str | dict[str, Any]
@@ -427,6 +429,11 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         from safenav.filters.escape import Escape
 
         safety = Escape(safety)
+    # A narrow body (the CBF's default cover of the footprint) is used when its flag is set: by an escape, or by
+    # the adversary when the settings name it. The guarantee is then the footprint's.
+    inner = getattr(safety, "inner", safety)
+    narrow = getattr(getattr(inner, "config", None), "narrow_body", None) is not None and (
+        inner is not safety or "narrow_body" in episode.settings)
     margin = float(safety.margin)
     deadlock_time = 0.0
     escape_steps = 0
@@ -437,7 +444,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
     footprint = None
-    if episode.settings.get("body") in ("cover", "polygon") and robot.footprint is not None:
+    if (episode.settings.get("body") in ("cover", "polygon") or narrow) and robot.footprint is not None:
         footprint = np.asarray(robot.footprint, dtype=float)   # the guarantee is then for the footprint
 
     def truth(poses: np.ndarray) -> np.ndarray:
@@ -464,6 +471,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         if episode.passage and not episode.escape:
             passage_period, duty = episode.passage
             safety.passage = (t % passage_period) < duty * passage_period
+            safety.narrow = safety.passage and narrow
         result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
@@ -583,7 +591,9 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
         # A wall with one door across the heading, its gap a little wider than the body needs.
         distance = keep_out + u[6] * 1.2
         angle = (u[7] - 0.5) * 0.8 * math.pi
-        width = 2.0 * (R + margin) + 0.02 + u[8] * 0.3
+        # (narrower than the disk needs when the filter has a narrower body for gaps: a door only it fits)
+        half = R if not settings.get("narrow_body") else body_half_width(spec, settings["narrow_body"])
+        width = 2.0 * (half + margin) + 0.02 + u[8] * 0.3
         offset = (u[9] - 0.5) * 0.4
         c, s = math.cos(angle), math.sin(angle)
         along = np.array([-s, c])
@@ -779,13 +789,20 @@ def _has_body(filter_name: str, robot: str | dict[str, Any], body: str) -> bool:
     return True
 
 
+def body_half_width(spec: RobotSpec, body: str) -> float:
+    """Half the width of the body model ``body`` of the CBF (its lateral extent) [m]."""
+    return {"disk": BodyModel.disk, "polygon": BodyModel.polygon,
+            "cover": lambda robot: BodyModel.cover(robot, 3)}[body](spec).half_width
+
+
 def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0,
-           min_obstacle_width: float | None = None) -> list[dict[str, Any]]:
+           min_obstacle_width: float | None = None, narrow_body: str | None = None) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base); the geometry and the nominal are searched inside each. With
-    ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide)."""
+    ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
+    ``narrow_body`` every CBF cell of a disk body on a robot with a footprint gets it (CBFConfig.narrow_body)."""
     cells = []
     for robot in robots:
         for filter_name in filters:
@@ -797,6 +814,9 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                     filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
                 if min_obstacle_width is not None and unescaped(filter_name) in ("cbf", "mpc"):
                     settings["min_obstacle_width"] = min_obstacle_width
+                if narrow_body is not None and unescaped(filter_name) == "cbf" and body == "disk" \
+                        and robot_spec(robot).footprint is not None:
+                    settings["narrow_body"] = narrow_body
                 for dt in dts:
                     for base in bases:
                         for give_velocity in ((True, False) if base == "instant" else (True,)):
@@ -830,7 +850,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
                      *([settings["body"]] if "body" in settings else []),
                      *([f"{settings['reference']}-reference"] if "reference" in settings else []),
                      *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else []),
-                     *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else [])))
+                     *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else []),
+                     *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -880,6 +901,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         default=None, metavar="W",
                         help="tell the CBF and MPC cells the narrowest obstacle to see in time [m] "
                              "(CBFConfig/MPCConfig.min_obstacle_width; default: what the lidars resolve)")
+    parser.add_argument("--narrow-body", default=None, choices=("cover", "polygon"),
+                        help="give the CBF cells (disk body, robots with a footprint) this body for gaps "
+                             "(CBFConfig.narrow_body; the adversary sets the narrow flag with the passage flag)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -903,7 +927,8 @@ def _run(args: argparse.Namespace) -> int:
         print(outcome)
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
-                   args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width)
+                   args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
+                   args.narrow_body)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

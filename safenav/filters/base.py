@@ -346,7 +346,10 @@ class SafetyFilter(abc.ABC):
     Args:
         robot: the robot whose body and limits the filter protects.
         dt: control period [s]: the longest time one returned command may be held.
-        body: the body model the filter keeps clear (default: the circumscribed disk).
+        body: the body model the filter keeps clear (default: the circumscribed disk); its outline is
+            the one the unknown region is measured from.
+        other_bodies: further body models the filter's rows may use (the CBF's ``narrow_body``): the
+            reach of the farthest of them sets the stopping reach, the horizon and the memory.
         scan_timeout: largest scan age [s] the filter acts on; older scans make it brake.
         compensate_latency: move a scan of known age into the current base frame using the
             measured velocity before filtering.
@@ -367,7 +370,8 @@ class SafetyFilter(abc.ABC):
     name = "filter"
     margin: float = 0.0
 
-    def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None, scan_timeout: float = 0.5,
+    def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None,
+                 other_bodies: Sequence[BodyModel] = (), scan_timeout: float = 0.5,
                  compensate_latency: bool = True, max_gap: float = math.radians(5.0),
                  side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
                  memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5,
@@ -377,6 +381,10 @@ class SafetyFilter(abc.ABC):
         self.robot = robot
         self.dt = _checks.duration("dt", dt, high=MAX_DT)
         self.body = body if body is not None else BodyModel.disk(robot)
+        self._other_bodies = tuple(other_bodies)
+        #: Largest distance from the base origin to any body model the rows may use [m]: the stopping reach,
+        #: the horizon and the memory are measured from it.
+        self.reach = max(b.reach for b in (self.body, *self._other_bodies))
         self.scan_timeout = _checks.duration("scan_timeout", scan_timeout, high=1e9)
         self.compensate_latency = _checks.boolean("compensate_latency", compensate_latency)
         self.max_gap = _checks.number("max_gap", max_gap, low=0.0, high=2.0 * math.pi)
@@ -391,12 +399,12 @@ class SafetyFilter(abc.ABC):
                 # to stop within it, so it must lie beyond the body and the margin.
                 lever = math.hypot(lidar.mount.x, lidar.mount.y)
                 resolved = resolved_range(self.min_obstacle_width, lidar.angle_increment)
-                if resolved - lever <= self.body.reach + self.margin:
+                if resolved - lever <= self.reach + self.margin:
                     raise InvalidConfig(
                         f"min_obstacle_width={self.min_obstacle_width!r} m: the {lidar.n_beams}-beam lidar "
                         f"{lidar.frame_id!r} sees an obstacle that narrow for sure only within {resolved:.3f} m of "
                         f"itself, inside the body and its margin (the robot could not move); expected more than "
-                        f"{beam_gap(self.body.reach + self.margin + lever, lidar.angle_increment):.4f} m")
+                        f"{beam_gap(self.reach + self.margin + lever, lidar.angle_increment):.4f} m")
         self._stalled = 0.0
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
@@ -404,7 +412,7 @@ class SafetyFilter(abc.ABC):
         if memory_range is None:
             speed = max(robot.v_max, -robot.v_min)
             stop = speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
-            memory_range = self.body.reach + self.margin + stop + 1.0
+            memory_range = self.reach + self.margin + stop + 1.0
         self.memory = PointMemory(_checks.positive("memory_range", memory_range), capacity) if capacity else None
         self._last_time: float | None = None
         self._last_pose: Pose2D | None = None
@@ -416,6 +424,11 @@ class SafetyFilter(abc.ABC):
         #: :attr:`corridor_half_width` (the escape, through a gap): a filter that trades room for
         #: steering (the CBF's look-ahead) then uses its narrow settings. It never weakens a guarantee.
         self.passage = False
+        #: Set by a caller while the robot drives through a gap narrower than :attr:`corridor_half_width`
+        #: that the filter's narrowest body fits (:attr:`narrow_half_width`; the escape, through such a gap):
+        #: a filter with a narrower body model for gaps (the CBF's ``narrow_body``) then uses it. The
+        #: guarantee is the footprint's either way.
+        self.narrow = False
 
     @property
     def corridor_half_width(self) -> float:
@@ -426,6 +439,12 @@ class SafetyFilter(abc.ABC):
         :attr:`passage` set) adds that. A passage narrower than twice this holds the body back.
         """
         return self.body.half_width + self.margin
+
+    @property
+    def narrow_half_width(self) -> float:
+        """Half-width [m] of the narrowest straight corridor the filter lets the body drive along with
+        :attr:`narrow` set (its narrowest body model); :attr:`corridor_half_width` for a filter with one body."""
+        return self.corridor_half_width
 
     # ------------------------------------------------------------------ hooks
 
@@ -483,6 +502,7 @@ class SafetyFilter(abc.ABC):
         self._stalled = 0.0
         self._progressing = 0.0
         self.passage = False
+        self.narrow = False
         self._on_reset()
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -774,11 +794,11 @@ class SafetyFilter(abc.ABC):
         """
         robot = self.robot
         held = self.dt if period is None else max(float(period), self.dt)
-        speed, lever = max(robot.v_max, -robot.v_min), self.body.reach
+        speed, lever = max(robot.v_max, -robot.v_min), self.reach
         reaction = held + self.dt + self.time_constant
         stop = (speed + lever * robot.omega_max) * reaction + speed**2 / (2.0 * robot.a_max) \
             + lever * robot.omega_max**2 / (2.0 * robot.alpha_max)
-        return self.body.reach + self.margin + 2.0 * stop
+        return self.reach + self.margin + 2.0 * stop
 
     @property
     def smallest_obstacle(self) -> float:

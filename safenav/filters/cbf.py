@@ -18,7 +18,7 @@ import qpsolvers
 from safenav import _checks
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
-from safenav.filters.body import BodyModel
+from safenav.filters.body import BodyModel, polygon_distance
 from safenav.filters.defaults import (
     default_gamma,
     default_margin,
@@ -82,6 +82,12 @@ class CBFConfig:
             "Look-ahead"). ``min_lookahead = lookahead`` keeps one look-ahead.
         body: ``"disk"`` (the circumscribed disk), ``"polygon"`` (the exact convex footprint) or
             ``"cover"`` (``n_disks`` disks covering the footprint).
+        narrow_body: a narrower body model (``"cover"``, the default, or ``"polygon"``) for the rows
+            while :attr:`~safenav.filters.SafetyFilter.narrow` is set (the escape sets it while it drives
+            through a gap the body does not fit), with no look-ahead; ``None``: none. Its rows
+            guarantee the footprint as the body's do; the filter switches to it, and back, only to an
+            answer that needs no relaxation (see :class:`CBFSafetyFilter`, "Narrow body"). A round
+            robot (no footprint), or a model no narrower than ``body``, gives none.
         n_disks: disks of the cover (default 3).
         solver: QP back-end name (``"daqp"``, ``"quadprog"``, ``"osqp"``, any qpsolvers solver;
             case-insensitive).
@@ -118,6 +124,7 @@ class CBFConfig:
     lookahead: float | None = None
     min_lookahead: float = 0.0
     body: str = "disk"
+    narrow_body: str | None = "cover"
     n_disks: int = 3
     solver: str = "daqp"
     weights: tuple[float, float] | None = None
@@ -146,6 +153,8 @@ class CBFConfig:
             _checks.number(name + "lookahead", self.lookahead, low=0.0, high=10.0)
         _checks.number(name + "min_lookahead", self.min_lookahead, low=0.0, high=10.0)
         _checks.choice("CBF body model", self.body, BODIES)
+        if self.narrow_body is not None:
+            _checks.choice("CBF narrow body model", self.narrow_body, BODIES)
         _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
         if not isinstance(self.solver, str):
             raise _checks.InvalidConfig(f"{name}solver must be a solver name, got {self.solver!r}")
@@ -180,9 +189,29 @@ class CBFConfig:
             margin=self.margin if self.margin is not None else default_margin(robot),
             lookahead=lookahead,
             min_lookahead=min(self.min_lookahead, lookahead),
+            narrow_body=self.narrow_body if self.narrow_body is not None and robot.footprint is not None and (
+                body_model(self.narrow_body, robot, self.n_disks).half_width
+                < body_model(self.body, robot, self.n_disks).half_width) else None,
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
         )
+
+
+def body_model(name: str, robot: RobotSpec, n_disks: int = 3) -> BodyModel:
+    """The body model ``name`` (one of :data:`BODIES`) of ``robot``; a cover has ``n_disks`` disks."""
+    if name == "cover":
+        return BodyModel.cover(robot, n_disks)
+    return BodyModel.polygon(robot) if name == "polygon" else BodyModel.disk(robot)
+
+
+class _Shape(NamedTuple):
+    """A body model with its control points ``lookahead`` ahead, as the rows use it."""
+
+    body: BodyModel
+    polygon: np.ndarray | None          # the footprint polygon of the exact barrier, else None
+    lookahead: float                    # [m]
+    arm: float                          # the farthest control point (or polygon vertex) from the base origin [m]
+    extent: tuple[float, float]         # bounds of the cut before any trigonometry [m]
 
 
 class _Problem(NamedTuple):
@@ -226,6 +255,19 @@ class CBFSafetyFilter(SafetyFilter):
     to an answer with status ``OK``/``LATE`` (``H >= 0`` for the longer barrier, no relaxation),
     tried once the flag is cleared and the longer look-ahead's own barrier over the call's points is at
     least ``LOOKAHEAD_ROOM``.
+
+    **Narrow body.** The circumscribed disk of a long robot is much wider than its footprint (the
+    m2wr's 0.292 m radius against its 0.15 m half-width). While
+    :attr:`~safenav.filters.base.SafetyFilter.narrow` is set (the escape sets it while it drives
+    through a gap the disk does not fit) the rows are built from ``narrow_body`` (default the cover
+    of the footprint by ``n_disks`` disks, no look-ahead; :attr:`rows_body` says which), taken only
+    for an answer with status ``OK``/``LATE`` (its ``H >= 0`` then, so the barrier condition holds
+    from there on for that body), and left, once the flag is cleared, for the disk when the disk's
+    own barrier has ``LOOKAHEAD_ROOM`` and its answer too is ``OK``/``LATE``. Either body covers
+    the footprint, so either keeps the footprint ``margin`` from every point. The cover's end
+    disks reach past the circumscribed disk along the heading: the stopping reach, the horizon
+    and the memory are measured from the farther (:attr:`~safenav.filters.SafetyFilter.reach`); the
+    unknown region stays measured from the body's outline (the disk contains the footprint).
 
     **Rows, by family** (:mod:`safenav.filters.rows`, each with its invariant):
     ``barrier`` (the discrete-time condition ``H(x+) >= (1 - gamma) H(x)``, with the arc of
@@ -302,9 +344,10 @@ class CBFSafetyFilter(SafetyFilter):
         cfg = self.config
         self.margin = float(cfg.margin)
         self._allowance = noise_allowance(robot, self.margin)
-        body = {"disk": BodyModel.disk, "polygon": BodyModel.polygon,
-                "cover": lambda spec: BodyModel.cover(spec, cfg.n_disks)}[cfg.body](robot)
-        super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
+        body = body_model(cfg.body, robot, cfg.n_disks)
+        narrow = None if cfg.narrow_body is None else body_model(cfg.narrow_body, robot, cfg.n_disks)
+        super().__init__(robot, dt, body=body, other_bodies=() if narrow is None else (narrow,),
+                         scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
@@ -313,34 +356,44 @@ class CBFSafetyFilter(SafetyFilter):
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
         self._abs_rows = families.abs_rows()
-        self._polygon = self.body.outline if self.body.name == "polygon" else None
-        self._lookaheads = {float(cfg.lookahead): self._reach_of(float(cfg.lookahead)),
-                            float(cfg.min_lookahead): self._reach_of(float(cfg.min_lookahead))}
-        self._use_lookahead(float(cfg.lookahead))
+        self._shapes = {"long": self._shape_of(body, float(cfg.lookahead)),
+                        "short": self._shape_of(body, float(cfg.min_lookahead))}
+        if narrow is not None:
+            self._shapes["narrow"] = self._shape_of(narrow, 0.0)
+        self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
 
-    def _reach_of(self, lookahead: float) -> tuple[float, tuple[float, float]]:
-        """The farthest control point from the base origin [m] and the bounds of the cut before any
-        trigonometry (:meth:`_constraints`) for the control points ``lookahead`` ahead."""
-        if self._polygon is not None:
-            vertices = np.hypot(self._polygon[:, 0], self._polygon[:, 1])
-            edge = np.roll(self._polygon, -1, axis=0) - self._polygon
+    def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
+        """``body`` with its control points ``lookahead`` ahead [m], the farthest of them from the base origin
+        [m] and the bounds of the cut before any trigonometry (:meth:`_constraints`)."""
+        if body.name == "polygon":
+            polygon = body.outline
+            vertices = np.hypot(polygon[:, 0], polygon[:, 1])
+            edge = np.roll(polygon, -1, axis=0) - polygon
             normal = np.column_stack((edge[:, 1], -edge[:, 0])) / np.hypot(edge[:, 0], edge[:, 1])[:, None]
-            inradius = float(np.min(np.einsum("ij,ij->i", normal, self._polygon)))   # origin to the nearest edge
+            inradius = float(np.min(np.einsum("ij,ij->i", normal, polygon)))   # origin to the nearest edge
             arm = float(vertices.max())          # the farthest body point [m]
             # Bounds for the cut before any trigonometry: H <= |o_min| - inradius - margin, h(o) >= |o| - R - margin.
-            return arm, (-inradius - self.margin, arm + self.margin)
-        control = self.body.centres + np.array([lookahead, 0.0])
+            return _Shape(body, polygon, lookahead, arm, (-inradius - self.margin, arm + self.margin))
+        control = body.centres + np.array([lookahead, 0.0])
         control_distance = np.hypot(control[:, 0], control[:, 1])
-        radius = self.body.radii + lookahead + self.margin
+        radius = body.radii + lookahead + self.margin
         # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
-        return float(np.max(control_distance)), (float(np.max(control_distance - radius)),
-                                                 float(np.max(control_distance + radius)))
+        return _Shape(body, None, lookahead, float(np.max(control_distance)),
+                      (float(np.max(control_distance - radius)), float(np.max(control_distance + radius))))
 
-    def _use_lookahead(self, lookahead: float) -> None:
-        """Build the rows of the following calls with the control points ``lookahead`` ahead [m]."""
-        self.lookahead = lookahead
-        self._arm, self._extent = self._lookaheads[lookahead]
+    def _use(self, shape: str) -> None:
+        """Build the rows of the following calls with the body and look-ahead of ``shape``
+        (``"long"``, ``"short"`` or ``"narrow"``, see :meth:`_filter`)."""
+        self._shape_name = shape
+        self._shape = self._shapes[shape]
+        self.lookahead = self._shape.lookahead
+        self._polygon, self._arm, self._extent = self._shape.polygon, self._shape.arm, self._shape.extent
+
+    @property
+    def rows_body(self) -> BodyModel:
+        """The body model of the last answer's rows: :attr:`body`, or ``narrow_body`` in a narrow gap."""
+        return self._shape.body
 
     def __repr__(self) -> str:
         return (f"CBFSafetyFilter(robot={self.robot.name!r}, dt={self.dt}, body={self.body.name!r}, "
@@ -357,7 +410,7 @@ class CBFSafetyFilter(SafetyFilter):
     def _constraints(self, view: View, velocity: np.ndarray | None, period: float, *, cut: bool = True
                      ) -> _Problem:
         """Every row of every family, from every point that can matter (every point with ``cut=False``)."""
-        robot, body = self.robot, self.body
+        robot, body = self.robot, self._shape.body
         lower, upper = robot.velocity_bounds(self.command_origin(velocity), period if velocity is not None else None)
         # The heading turns within the period at most at the fastest yaw rate of the box (and of the
         # current velocity): the arc coefficient of every row uses that rate, not omega_max.
@@ -421,7 +474,8 @@ class CBFSafetyFilter(SafetyFilter):
                                              box=(z_lower, z_upper) if cut else None)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
-            gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, body.reach)
+            # The unknown region is the perception body's outline (self.body), whatever body the rows use.
+            gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, self.body.reach)
             hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward))
             rows = families.stack(obstacle, hard)
         else:
@@ -433,7 +487,7 @@ class CBFSafetyFilter(SafetyFilter):
         """Distance from the body to the nearest point [m] (``distance``: each point's from the base)."""
         if points.shape[0] == 0:
             return math.inf
-        body = self.body
+        body = self._shape.body
         if self._polygon is not None:
             # Only points within the polygon's extent of the nearest one can be nearest to the polygon.
             return body.clearance(points[distance <= float(distance.min()) + 2.0 * self._arm + 1e-9])
@@ -578,6 +632,14 @@ class CBFSafetyFilter(SafetyFilter):
         and in a narrow passage (:attr:`passage`) the look-ahead is ``min_lookahead``."""
         return super().corridor_half_width + float(self.config.min_lookahead)
 
+    @property
+    def narrow_half_width(self) -> float:
+        """The narrow body's half-width plus the margin [m] (it has no look-ahead), when there is a narrow body
+        and it is narrower; else :attr:`corridor_half_width`."""
+        if "narrow" not in self._shapes:
+            return self.corridor_half_width
+        return min(self.corridor_half_width, self._shapes["narrow"].body.half_width + self.margin)
+
     def points(self, scan: LaserScan | Any) -> np.ndarray:
         """The obstacle points ``(N, 2)`` [m] (base frame) the rows of :meth:`rows` index.
 
@@ -609,44 +671,62 @@ class CBFSafetyFilter(SafetyFilter):
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
-        longest, shortest = float(self.config.lookahead), float(self.config.min_lookahead)
-        if shortest >= longest:
-            return self._filter_rows(u_nom, view, velocity, period)
-        if self.passage:
+        wanted = self._wanted()
+        if wanted != "long" and self._shape_name == "long":
             # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
             # the radius shrinks by it): switching to it is safe at any call.
-            self._use_lookahead(shortest)
-        elif self.lookahead == shortest and self._barrier_with(view, longest) >= LOOKAHEAD_ROOM:
-            # Back to the longer look-ahead once there is room for it (its barrier, over every point of this
-            # call, at least LOOKAHEAD_ROOM) and its answer needs no relaxation.
-            self._use_lookahead(longest)
+            self._use("short")
+        tries = [wanted] if wanted != self._shape_name else []
+        if wanted == "long" and self._shape_name == "narrow":
+            tries.append("short")
+        for shape in tries:
+            # Another body or a longer look-ahead only once its barrier, over every point of this call, has room
+            # (LOOKAHEAD_ROOM back to the body; 0 to the narrow body, which the caller asks for in a gap) and its
+            # answer needs no relaxation: every answer keeps the rows of the shape it used.
+            room = 0.0 if shape == "narrow" else LOOKAHEAD_ROOM
+            if shape == self._shape_name or self._barrier_with(view, self._shapes[shape]) < room:
+                continue
+            keep = self._shape_name
+            self._use(shape)
             result = self._filter_rows(u_nom, view, velocity, period)
             if result.status in (FilterStatus.OK, FilterStatus.LATE):
-                return result
-            self._use_lookahead(shortest)
-        if self.lookahead == shortest:
-            return self._shortened(self._filter_rows(u_nom, view, velocity, period))
-        return self._filter_rows(u_nom, view, velocity, period)
+                return self._noted(result)
+            self._use(keep)
+        return self._noted(self._filter_rows(u_nom, view, velocity, period))
 
-    def _barrier_with(self, view: View, lookahead: float) -> float:
-        """``H`` [m] with the control points ``lookahead`` [m] ahead, over every point of ``view``."""
+    def _wanted(self) -> str:
+        """The shape the caller's flags ask for: ``"narrow"`` (the narrow body, in a gap), ``"short"`` (the
+        shortest look-ahead, in a passage) or ``"long"``."""
+        if self.narrow and "narrow" in self._shapes:
+            return "narrow"
+        if (self.passage or self.narrow) and self._shapes["short"].lookahead < self._shapes["long"].lookahead:
+            return "short"
+        return "long"
+
+    def _barrier_with(self, view: View, shape: _Shape) -> float:
+        """``H`` [m] of ``shape`` (its body, its control points ``lookahead`` ahead), over every point of ``view``."""
         points = view.points
         if points.shape[0] == 0:
             return math.inf
-        control = self.body.centres + np.array([lookahead, 0.0])
+        if shape.polygon is not None:
+            return float((polygon_distance(shape.polygon, points) - self.margin - view.uncertainty).min())
+        control = shape.body.centres + np.array([shape.lookahead, 0.0])
         distance = np.hypot(points[:, None, 0] - control[None, :, 0], points[:, None, 1] - control[None, :, 1])
-        reach = self.body.radii[None, :] + lookahead + self.margin + view.uncertainty[:, None]
+        reach = shape.body.radii[None, :] + shape.lookahead + self.margin + view.uncertainty[:, None]
         return float((distance - reach).min())
 
     def _on_reset(self) -> None:
-        self._use_lookahead(float(self.config.lookahead))
+        self._use("long")
 
-    def _shortened(self, result: FilterResult) -> FilterResult:
-        """``result`` (built with the shortest look-ahead) with its reason saying so."""
-        if result.reason is None:
+    def _noted(self, result: FilterResult) -> FilterResult:
+        """``result`` with its reason saying which narrow setting built it (a passage's look-ahead, a gap's body)."""
+        if result.reason is None or self._shape_name == "long":
             return result
+        if self._shape_name == "narrow":
+            note = f"{self._shape.body.name} body, look-ahead {self.lookahead:g} m (a narrow gap)"
+        else:
+            note = f"look-ahead {self.lookahead:g} m (a narrow passage)"
         reason = result.reason
-        note = f"look-ahead {self.lookahead:g} m (a narrow passage)"
         return dataclasses.replace(result, reason=Reason(reason.family, f"{reason.detail}; {note}", reason.point),
                                    message="")
 

@@ -201,6 +201,7 @@ class Escape:
         self._since = math.inf  # time since the last escape ended [s]
         self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
         self._gap: float | None = None   # heading through the gap being driven, since the deadlock began [rad]
+        self._gap_width = 0.0   # the half-width it was found with [m]: the body's, or the filter's narrow body's
         self._gap_left = 0.0    # distance still to drive through it [m]
         self._gap_wait = 0.0    # distance to follow before looking for a gap again [m]
         self._spun = 0.0        # angle turned in place without driving since then [rad]
@@ -233,6 +234,12 @@ class Escape:
     def clear_half_width(self) -> float:
         """Half-width of a corridor the wrapped filter lets the body drive along [m] (its ``corridor_half_width``)."""
         return self.inner.corridor_half_width
+
+    @property
+    def gap_half_width(self) -> float:
+        """Half-width of the narrowest gap the wrapped filter lets the body through [m] (its ``narrow_half_width``:
+        with a narrower body model for gaps, that body's; else ``clear_half_width``)."""
+        return self.inner.narrow_half_width
 
     @property
     def escaping(self) -> bool:
@@ -280,7 +287,7 @@ class Escape:
             if not self._side and starting:
                 self._start(nominal, scans, points, self._blocking)
         if not self._side:
-            self.inner.passage = False
+            self.inner.passage = self.inner.narrow = False
             result = self.inner.filter(nominal, scan, **kwargs)
             held = result.period if math.isfinite(result.period) else self.dt
             self._move(result.u, held)
@@ -300,6 +307,7 @@ class Escape:
         # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
         # place, and between two obstacles it can forbid both turns while the body itself moves nowhere).
         self.inner.passage = self._gap is not None or (command[0] == 0.0 and command[1] != 0.0)
+        self.inner.narrow = self._gap is not None and self._gap_width < self.clear_half_width
         result = self.inner.filter(command, scan, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._move(result.u, held)
@@ -422,7 +430,11 @@ class Escape:
         """Count ``distance`` [m] driven against the way through a gap, and against the wait before the next search."""
         if self._gap is not None:
             self._gap_left -= distance
-            if self._stalled >= STALLED_ESCAPE:      # the filter does not let the body through: follow on
+            if self._stalled >= STALLED_ESCAPE and self._gap_width > self.gap_half_width:
+                # The filter does not let the body through (its margin and the range noise take what the scan
+                # showed to spare): on through the same gap with the filter's narrow body.
+                self._gap_width, self._stalled = self.gap_half_width, 0.0
+            elif self._stalled >= STALLED_ESCAPE:      # not even the narrow body: follow on
                 self._gap, self._gap_wait = None, self.config.gap_retry
         else:
             self._gap_wait = max(self._gap_wait - distance, 0.0)
@@ -506,29 +518,36 @@ class Escape:
         return False
 
     def _find_gap(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> float | None:
-        """The passage heading nearest the m-line within ``gap_window`` of it (since the deadlock began) [rad]."""
+        """The passage heading nearest the m-line within ``gap_window`` of it (since the deadlock began) [rad]:
+        among the passages the body fits (``clear_half_width``), else among those only the wrapped filter's narrow
+        body fits (``gap_half_width``; the escape then sets the filter's ``narrow`` while it drives through)."""
         offsets = _fan(self.config.gap_window)
-        passage, _ = self._passages(known, scans, offsets)
-        return float(offsets[int(np.argmax(passage))]) if passage.any() else None
+        for width in dict.fromkeys((self.clear_half_width, min(self.gap_half_width, self.clear_half_width))):
+            passage, _ = self._passages(known, scans, offsets, width)
+            if passage.any():
+                self._gap_width = width
+                return float(offsets[int(np.argmax(passage))])
+        return None
 
     def _aim(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> None:
         """Re-aim through the gap from where the robot is now: the passage heading within
         :data:`GAP_TRACKING` of the current one that keeps the body farthest from both sides."""
         headings = self._gap + _fan(GAP_TRACKING)
-        passage, room = self._passages(known, scans, headings)
+        passage, room = self._passages(known, scans, headings, self._gap_width)
         if passage.any():
             self._gap = float(headings[int(np.argmax(np.where(passage, room, -np.inf)))])
 
-    def _passages(self, known: np.ndarray, scans: tuple[LaserScan, ...],
-                  headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For headings since the deadlock began [rad]: which are passages, and the room on their tighter side [m].
+    def _passages(self, known: np.ndarray, scans: tuple[LaserScan, ...], headings: np.ndarray,
+                  width: float) -> tuple[np.ndarray, np.ndarray]:
+        """For headings since the deadlock began [rad]: which are passages for a body of half-width ``width`` [m]
+        (with the margin), and the room on their tighter side [m].
 
         A passage has points within ``gap_band`` of both edges of its corridor over ``clear_distance``
         (a door, not open floor), and its corridor is clear for twice that (it leads somewhere: the
         inside of a U-shaped trap is no way out of it).
         """
         directions = headings - self._turned
-        cfg, width = self.config, self.clear_half_width
+        cfg = self.config
         left, right = _side_room(known, directions, cfg.clear_distance, width + cfg.gap_band)
         room = np.minimum(*_side_room(known, directions, 2.0 * cfg.clear_distance, width))
         passage = self._seen(scans, directions) & (room >= width) & np.isfinite(left) & np.isfinite(right)

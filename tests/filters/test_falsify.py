@@ -32,6 +32,9 @@ CELLS = [
     # The MPC's look-ahead control disk is planned, never verified: the guarantee is still the body's.
     dict(robot="rosbot", filter_name="mpc", base="ramp_limit", dt=0.05, give_velocity=True,
          settings={"lookahead": 0.1}),
+    # The CBF's narrow body, switched on and off by the adversary: the guarantee is the footprint's.
+    dict(robot="rosbot", filter_name="cbf", base="lag", dt=0.05, give_velocity=True,
+         settings={"narrow_body": "cover"}),
 ]
 
 
@@ -65,6 +68,28 @@ def test_the_adversary_switches_the_cbfs_passage_flag():
     assert any("look-ahead 0 m" in row["message"] for row in log)
     assert not any("look-ahead 0 m" in row["message"] for row in plain_log)
     assert flagged.min_clearance < plain.min_clearance      # the flag lets the body nearer the wall
+
+
+def test_the_adversary_switches_the_cbfs_narrow_body_and_the_footprint_is_measured():
+    """With ``narrow_body`` in the settings the passage schedule sets ``narrow`` too: the m2wr drives at a door only
+    its cover fits (the search's doors are that narrow then), the footprint, not the disk, is measured."""
+    door = 2.0 * (make_filter("cbf", preset("m2wr"), 0.05).narrow_half_width + 0.02)
+    segments = ((0.9, -3.0, 0.9, -0.5 * door), (0.9, 0.5 * door, 0.9, 3.0))
+    base = dict(robot="m2wr", filter="cbf", base="ramp_limit", dt=0.05, segments=segments, nominal="arc",
+                params=(0.5, 0.0), duration=5.0, passage=(10.0, 1.0))
+    narrow, log = run(Episode(**base, settings={"narrow_body": "cover"}), record=True)
+    held, held_log = run(Episode(**base), record=True)
+    assert not held.contact and held.min_clearance >= held.margin - TOLERANCE
+    assert narrow.valid and not narrow.contact and narrow.min_clearance >= narrow.margin - TOLERANCE
+    assert any("(a narrow gap)" in row["message"] for row in log)
+    assert not any("(a narrow gap)" in row["message"] for row in held_log)
+    # Through the door (the footprint 2 cm beyond the margin from each post); the disk stands in front of it.
+    assert log[-1]["pose"][0] > 0.9 and held_log[-1]["pose"][0] < 0.7   # its disk at the posts, 0.24 m off the line
+    assert narrow.min_clearance < 0.09 + 1e-3
+    cells = _cells(["m2wr", "puzzlebot"], ["cbf", "cbf+escape", "mpc"], ["ramp"], [0.05], GEOMETRIES,
+                   SEARCHED_NOMINALS, ("disk",), narrow_body="cover")
+    assert [cell["settings"].get("narrow_body") for cell in cells] == ["cover", "cover", None, None, None, None]
+    assert _cell_key(cells[0]) == "m2wr/cbf/narrow-cover"
 
 
 def test_a_naive_robot_is_caught():
