@@ -802,7 +802,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base); the geometry and the nominal are searched inside each. With
     ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
-    ``narrow_body`` every CBF cell of a disk body on a robot with a footprint gets it (CBFConfig.narrow_body)."""
+    ``narrow_body`` every CBF and MPC cell of a disk body on a robot with a footprint gets it (CBFConfig and
+    MPCConfig.narrow_body; the MPC's only narrow body is the cover), and the adversary sets its ``narrow`` flag."""
     cells = []
     for robot in robots:
         for filter_name in filters:
@@ -814,8 +815,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                     filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
                 if min_obstacle_width is not None and unescaped(filter_name) in ("cbf", "mpc"):
                     settings["min_obstacle_width"] = min_obstacle_width
-                if narrow_body is not None and unescaped(filter_name) == "cbf" and body == "disk" \
-                        and robot_spec(robot).footprint is not None:
+                if narrow_body is not None and body == "disk" and robot_spec(robot).footprint is not None and (
+                        unescaped(filter_name) == "cbf" or (unescaped(filter_name) == "mpc" and narrow_body == "cover")):
                     settings["narrow_body"] = narrow_body
                 for dt in dts:
                     for base in bases:
@@ -902,8 +903,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         help="tell the CBF and MPC cells the narrowest obstacle to see in time [m] "
                              "(CBFConfig/MPCConfig.min_obstacle_width; default: what the lidars resolve)")
     parser.add_argument("--narrow-body", default=None, choices=("cover", "polygon"),
-                        help="give the CBF cells (disk body, robots with a footprint) this body for gaps "
-                             "(CBFConfig.narrow_body; the adversary sets the narrow flag with the passage flag)")
+                        help="name the CBF and MPC cells' body for gaps (disk body, robots with a footprint; "
+                             "CBFConfig/MPCConfig.narrow_body, the default cover) and let the adversary set their "
+                             "narrow flag with the passage flag (the MPC has only the cover)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)

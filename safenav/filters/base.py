@@ -441,6 +441,11 @@ class SafetyFilter(abc.ABC):
         return self.body.half_width + self.margin
 
     @property
+    def narrowed(self) -> bool:
+        """Whether the last answer was built for the filter's narrow body (see :attr:`narrow`)."""
+        return False
+
+    @property
     def narrow_half_width(self) -> float:
         """Half-width [m] of the narrowest straight corridor the filter lets the body drive along with
         :attr:`narrow` set (its narrowest body model); :attr:`corridor_half_width` for a filter with one body."""

@@ -166,6 +166,21 @@ class BodyModel:
                         points[:, None, 1] - self.centres[None, :, 1]) - self.radii[None, :]
         return float(gaps.min())
 
+    def barrier(self, points: np.ndarray, margin: float, uncertainty: np.ndarray | float = 0.0,
+                lookahead: float = 0.0) -> float:
+        """``H`` [m]: the smallest distance from the body (each disk's centre moved ``lookahead`` [m] ahead and
+        its radius grown by it; or the polygon) to ``points`` ``(N, 2)``, less ``margin`` and each point's
+        ``uncertainty`` [m] (``inf`` if no point)."""
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        if points.shape[0] == 0:
+            return math.inf
+        uncertainty = np.broadcast_to(np.asarray(uncertainty, dtype=float), (points.shape[0],))
+        if self.name == "polygon":
+            return float((polygon_distance(self.outline, points) - margin - uncertainty).min())
+        control = self.centres + np.array([lookahead, 0.0])
+        distance = np.hypot(points[:, None, 0] - control[None, :, 0], points[:, None, 1] - control[None, :, 1])
+        return float((distance - (self.radii[None, :] + lookahead + margin + uncertainty[:, None])).min())
+
     def outline_clearance(self, points: np.ndarray) -> float:
         """Smallest distance from the outline (footprint polygon, or the disk) to ``points`` [m]."""
         points = np.asarray(points, dtype=float).reshape(-1, 2)

@@ -18,7 +18,7 @@ import qpsolvers
 from safenav import _checks
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
-from safenav.filters.body import BodyModel, polygon_distance
+from safenav.filters.body import BodyModel
 from safenav.filters.defaults import (
     default_gamma,
     default_margin,
@@ -391,6 +391,10 @@ class CBFSafetyFilter(SafetyFilter):
         self._polygon, self._arm, self._extent = self._shape.polygon, self._shape.arm, self._shape.extent
 
     @property
+    def narrowed(self) -> bool:
+        return self._shape_name == "narrow"
+
+    @property
     def rows_body(self) -> BodyModel:
         """The body model of the last answer's rows: :attr:`body`, or ``narrow_body`` in a narrow gap."""
         return self._shape.body
@@ -681,9 +685,10 @@ class CBFSafetyFilter(SafetyFilter):
             tries.append("short")
         for shape in tries:
             # Another body or a longer look-ahead only once its barrier, over every point of this call, has room
-            # (LOOKAHEAD_ROOM back to the body; 0 to the narrow body, which the caller asks for in a gap) and its
-            # answer needs no relaxation: every answer keeps the rows of the shape it used.
-            room = 0.0 if shape == "narrow" else LOOKAHEAD_ROOM
+            # (LOOKAHEAD_ROOM from the shorter look-ahead to the longer, against flapping; into and out of the
+            # narrow body, which only the caller's flag asks for, 0) and its answer needs no relaxation: every
+            # answer keeps the rows of the shape it used.
+            room = LOOKAHEAD_ROOM if self._shape_name == "short" else 0.0
             if shape == self._shape_name or self._barrier_with(view, self._shapes[shape]) < room:
                 continue
             keep = self._shape_name
@@ -705,15 +710,7 @@ class CBFSafetyFilter(SafetyFilter):
 
     def _barrier_with(self, view: View, shape: _Shape) -> float:
         """``H`` [m] of ``shape`` (its body, its control points ``lookahead`` ahead), over every point of ``view``."""
-        points = view.points
-        if points.shape[0] == 0:
-            return math.inf
-        if shape.polygon is not None:
-            return float((polygon_distance(shape.polygon, points) - self.margin - view.uncertainty).min())
-        control = shape.body.centres + np.array([shape.lookahead, 0.0])
-        distance = np.hypot(points[:, None, 0] - control[None, :, 0], points[:, None, 1] - control[None, :, 1])
-        reach = shape.body.radii[None, :] + shape.lookahead + self.margin + view.uncertainty[:, None]
-        return float((distance - reach).min())
+        return shape.body.barrier(view.points, self.margin, view.uncertainty, shape.lookahead)
 
     def _on_reset(self) -> None:
         self._use("long")

@@ -40,7 +40,12 @@ nominal by an escape command until the nominal's way is clear again:
    ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
    looks again after ``gap_retry``). Meanwhile it sets the wrapped filter's ``passage``, so that a
    filter that trades room for steering uses its narrow settings (the CBF its ``min_lookahead``;
-   never a weaker guarantee). It sets it too while it turns in place (3. and the gap's turns):
+   never a weaker guarantee). Gaps are looked for with the body's corridor first, then with the
+   filter's narrow body's (``gap_half_width``: the CBF's and the MPC's cover of a long robot's
+   footprint); through a gap only that one fits, or one where the filter holds the body (the range
+   noise takes what the scan showed to spare), it also sets the filter's ``narrow``, and the filter
+   keeps the footprint clear with the narrow body's rows or plans (its guarantee is the footprint's
+   either way). It sets it too while it turns in place (3. and the gap's turns):
    the CBF's control point ahead of the body swings sideways in a turn, and between two
    obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
@@ -307,7 +312,8 @@ class Escape:
         # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
         # place, and between two obstacles it can forbid both turns while the body itself moves nowhere).
         self.inner.passage = self._gap is not None or (command[0] == 0.0 and command[1] != 0.0)
-        self.inner.narrow = self._gap is not None and self._gap_width < self.clear_half_width
+        # Past the gap's length the flag is cleared, and the escape drives on until the filter is back on its body.
+        self.inner.narrow = self._gap is not None and self._gap_width < self.clear_half_width and self._gap_left > 0.0
         result = self.inner.filter(command, scan, **kwargs)
         held = result.period if math.isfinite(result.period) else self.dt
         self._move(result.u, held)
@@ -575,7 +581,9 @@ class Escape:
         if self._elapsed >= cfg.max_time:
             return True
         if self._gap is not None:
-            return self._gap_left <= 0.0
+            # Through the gap, and on along it until the filter has left its narrow body (a long robot's cover turns
+            # badly where its disk does not fit: the nominal would turn it there).
+            return self._gap_left <= 0.0 and not self.inner.narrowed
         if self._elapsed < cfg.min_time:
             return False
         if self._clear(known, scans, -self._turned):

@@ -88,7 +88,7 @@ def test_the_adversary_switches_the_cbfs_narrow_body_and_the_footprint_is_measur
     assert narrow.min_clearance < 0.09 + 1e-3
     cells = _cells(["m2wr", "puzzlebot"], ["cbf", "cbf+escape", "mpc"], ["ramp"], [0.05], GEOMETRIES,
                    SEARCHED_NOMINALS, ("disk",), narrow_body="cover")
-    assert [cell["settings"].get("narrow_body") for cell in cells] == ["cover", "cover", None, None, None, None]
+    assert [cell["settings"].get("narrow_body") for cell in cells] == ["cover", "cover", "cover", None, None, None]
     assert _cell_key(cells[0]) == "m2wr/cbf/narrow-cover"
 
 

@@ -86,6 +86,11 @@ class MPCConfig:
             braking from full speed to a stop (quadratic in the share used).
         body: ``"disk"`` (the circumscribed disk) or ``"cover"`` (``n_disks`` disks covering the
             footprint, :meth:`~safenav.filters.body.BodyModel.cover`).
+        narrow_body: ``"cover"`` (default) or ``None``: while the filter's ``narrow`` flag is set (the
+            escape, through a gap the disk does not fit) the plan is made and verified for the cover
+            of the footprint, taken and left only with an answer of status ``OK``/``LATE`` (see
+            :class:`~safenav.filters.mpc.MPCSafetyFilter`, "Narrow body"). None for a round robot or
+            ``body="cover"``.
         n_disks: disks of the cover.
         lookahead: a control disk of the (foremost) body disk's radius this far ahead of it [m]
             (0: none). The plan keeps it clear like the body, but verification does not: it
@@ -152,6 +157,7 @@ class MPCConfig:
     buffer: float | None = None
     buffer_cost: float = 1.0
     body: str = "disk"
+    narrow_body: str | None = "cover"
     n_disks: int = 3
     lookahead: float = 0.0
     n_points: int | None = None
@@ -186,6 +192,8 @@ class MPCConfig:
             _checks.number(name + "buffer", self.buffer, low=0.0, high=1.0)
         _checks.number(name + "buffer_cost", self.buffer_cost, low=0.0, high=1e9, low_open=True)
         _checks.choice("MPC body model", self.body, BODIES)
+        if self.narrow_body is not None:
+            _checks.choice("MPC narrow body model", self.narrow_body, BODIES[1:])
         _checks.integer(name + "n_disks", self.n_disks, low=1, high=16)
         _checks.number(name + "lookahead", self.lookahead, low=0.0, high=10.0)
         if self.n_points is not None:
@@ -234,4 +242,5 @@ class MPCConfig:
             solver=solver,
             n_points=self.n_points if self.n_points is not None else CASADI_POINTS if casadi_solver else DIRECT_POINTS,
             budget=self.budget if self.budget is not None else BUDGET_FRACTION * dt,
+            narrow_body=self.narrow_body if self.body == "disk" and robot.footprint is not None else None,
         )

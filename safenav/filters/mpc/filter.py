@@ -7,6 +7,7 @@ NLP, the SQP, the plan layout and the configuration are the package's other modu
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
@@ -253,7 +254,9 @@ class MPCSafetyFilter(SafetyFilter):
                                 f"MPC filter's arc model; expected <= 2 (a shorter dt)")
         self.margin = float(cfg.margin)
         body = BodyModel.cover(robot, cfg.n_disks) if cfg.body == "cover" else BodyModel.disk(robot)
-        super().__init__(robot, dt, body=body, scan_timeout=cfg.scan_timeout,
+        narrow_body = None if cfg.narrow_body is None else BodyModel.cover(robot, cfg.n_disks)
+        super().__init__(robot, dt, body=body, other_bodies=() if narrow_body is None else (narrow_body,),
+                         scan_timeout=cfg.scan_timeout,
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
@@ -302,6 +305,13 @@ class MPCSafetyFilter(SafetyFilter):
                 memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time)
         self._referenced: FilterResult | None = None    # the reference's answer of this call
         self._call_start: float | None = None
+        #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock
+        #: are this filter's), used while :attr:`narrow` asks for it, else ``None``.
+        self.narrow_planner: MPCSafetyFilter | None = None
+        if narrow_body is not None:
+            self.narrow_planner = MPCSafetyFilter(robot, dt, config=dataclasses.replace(
+                base_config, body="cover", narrow_body=None, reference="nominal", memory_capacity=0), clock=clock)
+        self._in_narrow = False     # whether the last answer's plan was the narrow planner's
 
     def _inflation(self, hold: int) -> tuple[np.ndarray, np.ndarray, float, float]:
         """Each disk's guaranteed radius ``r_d``, actuator error ``e_act_d``, the buffer and the part of
@@ -403,8 +413,27 @@ class MPCSafetyFilter(SafetyFilter):
     def _on_reset(self) -> None:
         self._commands = None
         self._splitting = False
+        self._in_narrow = False
+        if self.narrow_planner is not None:
+            self.narrow_planner.reset()
         if self.reference is not None:
             self.reference.reset()
+
+    @property
+    def narrow_half_width(self) -> float:
+        """The narrow body's half-width plus the margin [m] (the cover of the footprint), when there is one."""
+        if self.narrow_planner is None:
+            return self.corridor_half_width
+        return min(self.corridor_half_width, self.narrow_planner.corridor_half_width)
+
+    @property
+    def narrowed(self) -> bool:
+        return self._in_narrow
+
+    @property
+    def plan_body(self) -> BodyModel:
+        """The body model of the last answer's plan: :attr:`body`, or the narrow body's in a narrow gap."""
+        return self.narrow_planner.body if self._in_narrow and self.narrow_planner is not None else self.body
 
     def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
                pose: Any = None, scan_age: Any = None, now: float | None = None) -> FilterResult:
@@ -419,6 +448,7 @@ class MPCSafetyFilter(SafetyFilter):
             if self.reference is not None:
                 self._call_start = self.clock()     # the budget covers the reference's call too
                 self.reference.passage = self.passage
+                self.reference.narrow = self.narrow and self.narrow_planner is not None
                 self._referenced = self.reference.filter(u_nom, scan, velocity=velocity, pose=pose,
                                                          scan_age=scan_age, now=now)
             result = super().filter(u_nom, scan, velocity=velocity, pose=pose, scan_age=scan_age, now=now)
@@ -429,6 +459,8 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _on_brake(self) -> None:
         self._commands = None
+        if self.narrow_planner is not None:
+            self.narrow_planner._commands = None
 
     def _braking_start(self, velocity: np.ndarray | None) -> np.ndarray:
         # Without a measurement the commands stay a sequence the base can follow: brake from the last one.
@@ -604,7 +636,46 @@ class MPCSafetyFilter(SafetyFilter):
         return _replace(result, u_nom=_frozen(u_nom, (2,)))
 
     def _plan_for(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
-        """The verified plan that tracks ``u_nom`` (the nominal, or the reference's answer), as a result."""
+        """The verified plan that tracks ``u_nom``, of the body or (in a narrow gap) of the narrow body.
+
+        Either planner is taken up afresh (no stored plan of its own, which would be stale) only when
+        its body's barrier over the call's points is not negative and its answer has status
+        ``OK``/``LATE``; else the current one answers. Both share the call's compute budget.
+        """
+        narrow = self.narrow_planner
+        if narrow is None:
+            return self._planned(u_nom, view, velocity, period)
+        call_start = self._call_start if self._call_start is not None else self.clock()
+        if self.narrow != self._in_narrow:
+            body = narrow.body if self.narrow else self.body
+            if body.barrier(view.points, self.margin, view.uncertainty) >= 0.0:
+                planner = self._planner(self.narrow, call_start)
+                planner._commands, planner._splitting = None, False
+                result = planner._planned(u_nom, view, velocity, period)
+                if result.status in (FilterStatus.OK, FilterStatus.LATE):
+                    self._in_narrow = self.narrow
+                    return self._noted(result)
+        return self._noted(self._planner(self._in_narrow, call_start)._planned(u_nom, view, velocity, period))
+
+    def _planner(self, narrow: bool, call_start: float) -> MPCSafetyFilter:
+        """This filter, or its narrow planner with this call's state (the last command, the flags, the budget)."""
+        planner = self.narrow_planner if narrow and self.narrow_planner is not None else self
+        if planner is not self:
+            planner._last_command, planner._called = self._last_command, self._called
+            planner.passage = self.passage
+        planner._call_start = call_start
+        return planner
+
+    def _noted(self, result: FilterResult) -> FilterResult:
+        """``result`` with its reason saying when the narrow body's plan made it."""
+        if not self._in_narrow or result.reason is None:
+            return result
+        reason = result.reason
+        reason = Reason(reason.family, f"{reason.detail}; {self.plan_body.name} body (a narrow gap)", reason.point)
+        return _replace(result, reason=reason, message=str(reason))
+
+    def _planned(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        """The verified plan of this filter's body that tracks ``u_nom`` (the nominal, or the reference's answer)."""
         deadline = (self._call_start if self._call_start is not None else self.clock()) + self.budget
         start = self._last_command if velocity is None else velocity
         hold = min(self.horizon - 1, max(1, math.ceil(period / self.dt - 1e-6)))
