@@ -115,8 +115,8 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                              "cover) (default: disk)")
     parser.add_argument("--truth", choices=TRUTH_BODIES, default=None,
                         help="what body the simulator's clearance and collisions are measured for "
-                             "(SimConfig.truth): disk (the circumscribed disk) or footprint (default: footprint "
-                             "with --body cover or polygon, else disk)")
+                             "(SimConfig.truth): footprint, disk (the circumscribed disk) or auto (default: the "
+                             "convex footprint, else the disk)")
     parser.add_argument("--csv", metavar="PATH", help="write one row per cell as CSV")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs: collision rates, clearance histogram, "
                                                        "one trajectory overlay per scenario")
@@ -149,11 +149,11 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.range_noise is not None:
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
                  for spec in specs]
-    truth = args.truth or ("disk" if args.body == "disk" else "footprint")
+    truth = args.truth or ("auto" if args.body == "disk" else "footprint")
     if args.body not in MPC_BODIES and any(unescaped(name) == "mpc" for name in filters):
         raise InvalidConfig(f"--body {args.body}: the MPC's body models are {', '.join(MPC_BODIES)}; "
                             "leave the mpc filters out (--filters) or choose another body")
-    if truth != "disk":
+    if truth != "auto":
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "truth": truth}) for spec in specs]
     specs = tuned(specs, mpc_reference=args.mpc_reference, mpc_lookahead=args.mpc_lookahead,
                   cbf_smoothing=args.cbf_smoothing, body=args.body)
@@ -166,7 +166,7 @@ def _sweep(args: argparse.Namespace) -> int:
           f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}"
           f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}"
           f"{f'; body model {args.body}' if args.body != 'disk' else ''}"
-          f"{f'; clearance measured for the {truth}' if truth != 'disk' else ''}")
+          f"; clearance measured for the {'footprint (the disk of a round robot)' if truth == 'auto' else truth}")
     outcomes, wall_time = run_sweep(args, run_spec, specs, description="episodes", cost=spec_cost)
     records = cell_records(outcomes)
     summary = pooled_records(records, lambda record: (scenario(record["scenario"]).world_kind, record["filter"]))

@@ -815,8 +815,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                     filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
                 if min_obstacle_width is not None and unescaped(filter_name) in ("cbf", "mpc"):
                     settings["min_obstacle_width"] = min_obstacle_width
-                if narrow_body is not None and body == "disk" and robot_spec(robot).footprint is not None and (
-                        unescaped(filter_name) == "cbf" or (unescaped(filter_name) == "mpc" and narrow_body == "cover")):
+                takes = unescaped(filter_name) == "cbf" or (unescaped(filter_name) == "mpc" and narrow_body == "cover")
+                if narrow_body is not None and takes and body == "disk" and robot_spec(robot).footprint is not None:
                     settings["narrow_body"] = narrow_body
                 for dt in dts:
                     for base in bases:

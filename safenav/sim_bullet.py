@@ -53,11 +53,11 @@ Model, and why:
   :attr:`SimState.scan` the main lidar's.
 * **Truth**: the body clearance is exact and analytic (:meth:`World.clearance
   <safenav.worlds.World.clearance>` on the true circles and rectangles), evaluated at
-  every physics step for the first-collision time. The body is the robot's circumscribed
-  disk by default; ``SimConfig(truth="footprint")`` measures its convex footprint instead,
+  every physics step for the first-collision time. The body is the robot's convex footprint,
   turning with the heading (:meth:`World.footprint_clearance
-  <safenav.worlds.World.footprint_clearance>`: the guarantee of a filter with
-  ``body="polygon"`` or ``"cover"``, which a disk's contact would misreport).
+  <safenav.worlds.World.footprint_clearance>`: what touches an obstacle, and what the filters
+  guarantee, with their narrow body in gaps the circumscribed disk does not fit), or the
+  circumscribed disk for a round robot, a concave footprint, or ``SimConfig(truth="disk")``.
   :meth:`BulletSim.bullet_clearance` measures the disk's with PyBullet's ``getClosestPoints``
   for cross-checks.
 
@@ -172,7 +172,7 @@ _HIT_FRACTION = operator.itemgetter(2)   # rayTestBatch: (object id, link, hit f
 _RAY_BATCH_LIMIT = 16384   # pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE: rays rayTestBatch takes in one call
 
 #: What body the simulator's exact clearance is measured for (:attr:`SimConfig.truth`).
-TRUTH_BODIES = ("disk", "footprint")
+TRUTH_BODIES = ("auto", "disk", "footprint")
 
 
 def _convex_footprint(robot: RobotSpec) -> np.ndarray | None:
@@ -241,10 +241,12 @@ class SimConfig:
               integrated exactly over each physics step.
         base_time_constant: time constant of the ``"lag"`` base [s]; ``control_dt`` when ``None``.
         truth: what body the exact clearance (:meth:`BulletSim.clearance`, collisions, ``min_clearance``)
-            is measured for: ``"disk"`` (default: the circumscribed disk of radius ``robot.radius``) or
-            ``"footprint"`` (the robot's convex ``footprint`` polygon, turning with the heading: the
-            guarantee of a filter built with ``body="polygon"`` or ``"cover"``; a robot without a
-            footprint is round, and keeps its disk).
+            is measured for: ``"footprint"`` (the robot's convex ``footprint`` polygon, turning with the
+            heading: what touches an obstacle, and the guarantee of the filters, which keep it clear with
+            their disk, or with the cover of the footprint in a narrow gap; a robot without a footprint is
+            round, and keeps its disk), ``"disk"`` (the circumscribed disk of radius ``robot.radius``), or
+            ``"auto"`` (default): the footprint when it is convex, else the disk (a concave footprint's
+            exact clearance is not implemented; its circumscribed disk over-reports contacts).
     """
 
     control_dt: float = 0.05
@@ -261,7 +263,7 @@ class SimConfig:
     cylinder_tolerance: float = 0.001
     base: str = BASE_MODELS[0]
     base_time_constant: float | None = None
-    truth: str = "disk"
+    truth: str = "auto"
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -390,7 +392,9 @@ class BulletSim:
         self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
-        self._footprint = None if config.truth == "disk" else _convex_footprint(robot)
+        self._footprint = None if config.truth == "disk" or (
+            config.truth == "auto" and (robot.footprint is None or not is_convex(robot.footprint))) \
+            else _convex_footprint(robot)
         self._mover_bodies = [self._build_mover(mover.shape) for mover in self._movers]
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,

@@ -44,16 +44,17 @@ def test_same_seed_gives_identical_metrics():
 def test_driving_straight_into_a_wall_is_measured_right():
     robot = preset("rosbot")
     world = tutorial_world("stop_at_wall")          # wall face 3 m ahead of the start
+    front = max(x for x, _ in robot.footprint)      # what touches it: the footprint (the default truth)
     speed = 0.5
     result = run_episode(world, robot, Constant(speed), config=EpisodeConfig(duration=12.0), seed=0, record=True)
     metrics = result.metrics
     ramp_time = speed / robot.a_max                  # accelerating at the limit from rest
     ramp_distance = 0.5 * speed * ramp_time
-    expected_time = ramp_time + (3.0 - robot.radius - ramp_distance) / speed
+    expected_time = ramp_time + (3.0 - front - ramp_distance) / speed
     assert metrics.collided
     assert metrics.collision_time == pytest.approx(expected_time, abs=0.011)   # one physics step
     # The period in which it touched runs to its end: at most 0.05 s x 0.5 m/s further.
-    assert 3.0 - robot.radius - 0.005 <= metrics.distance <= 3.0 - robot.radius + 0.026
+    assert 3.0 - front - 0.005 <= metrics.distance <= 3.0 - front + 0.026
     assert metrics.min_clearance < 0.0
     assert metrics.steps == len(result.trajectory.u) == math.ceil(metrics.collision_time / 0.05 - 1e-9)
     assert metrics.mean_intervention == 0.0 and metrics.statuses == {"none": metrics.steps}

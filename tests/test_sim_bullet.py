@@ -14,7 +14,8 @@ from safenav.worlds import START_CLEARANCE, WALL_THICKNESS, Box, Cylinder, Wall,
 
 pytestmark = pytest.mark.sim
 
-EXACT = SimConfig(range_noise=0.0)   # the m2wr preset has 1 cm of lidar noise; truth tests switch it off
+# The m2wr preset has 1 cm of lidar noise; truth tests switch it off, and measure the circumscribed disk.
+EXACT = SimConfig(range_noise=0.0, truth="disk")
 
 
 def wall_ahead(pose: Pose2D, distance: float, length: float = 6.0) -> Wall:
@@ -246,6 +247,19 @@ def test_the_footprint_truth_needs_a_convex_footprint_and_a_pose_with_its_yaw_an
             sim.clearance((1.0, 1.0))
     with pytest.raises(UnknownName, match=r"SimConfig\.truth"):
         SimConfig(truth="hull")
+
+
+def test_by_default_the_footprint_is_measured_and_the_disk_of_a_round_robot_or_a_concave_footprint():
+    """What touches an obstacle is the footprint (and the filters keep it clear with their narrow body where the
+    circumscribed disk would not fit): ``truth="auto"``, the default, measures it when it is convex."""
+    start = Pose2D(0.0, 0.0, 0.0)
+    world = World("wall", (wall_ahead(start, 1.0),), start=start)
+    concave = preset("m2wr").replace(footprint=((0.25, 0.15), (0.0, 0.0), (-0.25, 0.15), (-0.25, -0.15), (0.25, -0.15)))
+    assert SimConfig().truth == "auto"
+    for robot, reach in ((preset("m2wr"), 0.25), (preset("puzzlebot"), preset("puzzlebot").radius),
+                         (concave, concave.radius)):
+        with BulletSim(world, robot, SimConfig(range_noise=0.0)) as sim:
+            assert sim.reset().clearance == pytest.approx(1.0 - reach, abs=1e-9)
 
 
 def test_a_robot_far_from_everything_never_collides():

@@ -141,7 +141,10 @@ def test_a_body_model_is_measured_with_the_footprint_truth_and_the_mpc_refuses_t
         collision_rates.episode_specs(collision_rates.matrix(["goal_m2wr"], None, ["zones", "cbf", "mpc+escape"]),
                                       range(1)), body="cover")}
     assert tuned == {"zones": {}, "cbf": {"body": "cover"}, "mpc+escape": {"body": "cover"}}
-    printed, report = _one_episode(tmp_path, capsys, "goal_m2wr", "cbf", "--truth", "footprint")
-    assert (report["config"]["body"], report["config"]["truth"]) == ("disk", "footprint")
+    printed, report = _one_episode(tmp_path, capsys, "goal_m2wr", "cbf", "--truth", "disk")
+    assert (report["config"]["body"], report["config"]["truth"]) == ("disk", "disk")
+    printed, report = _one_episode(tmp_path, capsys, "goal_m2wr", "cbf")
+    assert (report["config"]["body"], report["config"]["truth"]) == ("disk", "auto")
+    assert "clearance measured for the footprint (the disk of a round robot)" in printed
     assert collision_rates.main(["--scenarios", "goal_m2wr", "--filters", "cbf,mpc", "--body", "polygon"]) == 2
     assert "--body polygon: the MPC's body models are disk, cover" in capsys.readouterr().err

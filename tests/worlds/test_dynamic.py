@@ -23,7 +23,8 @@ from safenav.worlds.dynamic import (
 )
 
 START = Pose2D(0.0, 0.0, 0.0)
-EXACT = SimConfig(range_noise=0.0, base="instant")   # the pose is then exactly v * t along x
+# The pose is then exactly v * t along x; the analytic clearances below are the circumscribed disk's.
+EXACT = SimConfig(range_noise=0.0, base="instant", truth="disk")
 
 
 # ---------------------------------------------------------------------------------------------- paths
