@@ -86,6 +86,8 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                              f"{QUICK['seeds']} seeds, {QUICK['duration']:g} s episodes (explicit options win)")
     parser.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=None,
                         help=f"seeds 0..N-1 per cell (default: {FULL_SEEDS}; {QUICK['seeds']} with --quick)")
+    parser.add_argument("--first-seed", metavar="S", type=argument_type(integer, low=0), default=0,
+                        help="start the seeds at S: seeds S..S+N-1 (more episodes of the same cells, default 0)")
     parser.add_argument("--scenarios", type=names, default=None, metavar="A,B",
                         help="comma-separated scenarios (default: all)")
     parser.add_argument("--policies", type=names, default=None, metavar="A,B",
@@ -141,7 +143,8 @@ def _sweep(args: argparse.Namespace) -> int:
                        ("--plots", args.plots and Path(args.plots) / "collision_rates.png")):
         if path:
             writable_file(what, path)
-    specs = episode_specs(cells, range(seeds), duration, record_seeds=[0] if args.plots else ())
+    seed_range = range(args.first_seed, args.first_seed + seeds)
+    specs = episode_specs(cells, seed_range, duration, record_seeds=[seed_range[0]] if args.plots else ())
     if args.odometry:
         specs = [dataclasses.replace(spec, odometry=True) for spec in specs]
     if not args.real_time:   # the same seed, the same episode, whatever the machine's load
@@ -159,7 +162,8 @@ def _sweep(args: argparse.Namespace) -> int:
                   cbf_smoothing=args.cbf_smoothing, body=args.body)
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
-          f"x {seeds} seeds, on {where(args)}; the filters get the measured velocity"
+          f"x {seeds} seeds{f' from {args.first_seed}' if args.first_seed else ''}, on {where(args)}; the filters get "
+          f"the measured velocity"
           f"{' and the odometry pose' if args.odometry else ' only'}"
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
           f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}"
@@ -189,7 +193,7 @@ def _sweep(args: argparse.Namespace) -> int:
     scenario_names = list(dict.fromkeys(cell.scenario for cell in cells))
     config = {
         "quick": args.quick,
-        "seeds": list(range(seeds)),
+        "seeds": list(seed_range),
         "scenarios": scenario_names,
         "policies": sorted({cell.policy for cell in cells}),
         "filters": filters,

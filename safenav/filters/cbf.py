@@ -263,7 +263,7 @@ class CBFSafetyFilter(SafetyFilter):
     of the footprint by ``n_disks`` disks, no look-ahead; :attr:`rows_body` says which), taken only
     for an answer with status ``OK``/``LATE`` (its ``H >= 0`` then, so the barrier condition holds
     from there on for that body), and left, once the flag is cleared, for the disk when the disk's
-    own barrier has ``LOOKAHEAD_ROOM`` and its answer too is ``OK``/``LATE``. Either body covers
+    own barrier is not negative and its answer too is ``OK``/``LATE``. Either body covers
     the footprint, so either keeps the footprint ``margin`` from every point. The cover's end
     disks reach past the circumscribed disk along the heading: the stopping reach, the horizon
     and the memory are measured from the farther (:attr:`~safenav.filters.SafetyFilter.reach`); the

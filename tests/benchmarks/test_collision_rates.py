@@ -148,3 +148,13 @@ def test_a_body_model_is_measured_with_the_footprint_truth_and_the_mpc_refuses_t
     assert "clearance measured for the footprint (the disk of a round robot)" in printed
     assert collision_rates.main(["--scenarios", "goal_m2wr", "--filters", "cbf,mpc", "--body", "polygon"]) == 2
     assert "--body polygon: the MPC's body models are disk, cover" in capsys.readouterr().err
+
+
+@pytest.mark.sim
+def test_first_seed_runs_more_episodes_of_the_same_cells(tmp_path, capsys):
+    """``--first-seed 20 --seeds 1`` runs seed 20, the episode a 21-seed sweep runs last (same world, same result)."""
+    printed, report = _one_episode(tmp_path, capsys, "goal_rosbot", "cbf", "--first-seed", "20")
+    assert report["config"]["seeds"] == [20] and "x 1 seeds from 20" in printed
+    (cell,) = report["cells"]
+    assert cell["seeds"] == [20]
+    assert "--first-seed" in _usage_error(capsys, "--first-seed", "-1")
