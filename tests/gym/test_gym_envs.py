@@ -203,3 +203,22 @@ def test_a_non_finite_action_is_an_invalid_command() -> None:
     with pytest.raises(ValueError, match="finite"):
         env.step((math.nan, 0.0))
     env.close()
+
+
+def test_an_arena_that_cannot_be_drawn_is_drawn_again_from_the_same_stream() -> None:
+    """The m2wr's GoToGoal arena (20 obstacles in 8 x 8 m) cannot be placed for the world seed the stream of seed 104
+    draws first: the task draws the next one, the same seed gives the same arena, and an arena that can never be
+    drawn is an error that names the task, the robot and what to lower."""
+    from safenav.gym.tasks.arena import ARENA_DRAWS
+    from safenav.gym.tasks.base import draw_seed
+    from safenav.worlds import random_world
+
+    task, robot = GoToGoal(), preset("m2wr")
+    with pytest.raises(InvalidConfig, match="could not place obstacle"):
+        random_world(draw_seed(np.random.default_rng(104)), robot, n_obstacles=task.n_obstacles, size=task.size,
+                     goal=True)
+    first, again = (task.world(robot, np.random.default_rng(104)) for _ in range(2))
+    assert first == again and len(first.obstacles) > task.n_obstacles
+    with pytest.raises(InvalidConfig, match=rf"GoToGoal: no arena of 200 obstacles in 8 x 8 m for the robot 'm2wr' "
+                                            rf"in {ARENA_DRAWS} draws .*expected fewer obstacles"):
+        GoToGoal(n_obstacles=200).world(robot, np.random.default_rng(0))

@@ -7,11 +7,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from safenav._checks import integer, pair
+from safenav.errors import InvalidConfig
 from safenav.gym.tasks.base import Task, draw_seed
 from safenav.robot import RobotSpec
 from safenav.worlds import World, random_world
 
-__all__ = ["RandomArena"]
+__all__ = ["ARENA_DRAWS", "RandomArena"]
+
+#: World seeds a task tries, from its stream, before it gives up drawing an arena.
+ARENA_DRAWS = 10
 
 
 @dataclass(frozen=True)
@@ -37,4 +41,17 @@ class RandomArena(Task):
         object.__setattr__(self, "size", pair(f"{owner}.size", self.size, low=0.0, low_open=True))
 
     def world(self, robot: RobotSpec, rng: np.random.Generator) -> World:
-        return random_world(draw_seed(rng), robot, n_obstacles=self.n_obstacles, size=self.size, goal=self.has_goal)
+        """An arena drawn from ``rng``. A dense arena cannot always be drawn (:func:`random_world` gives up
+        placing an obstacle after its tries: the m2wr's GoToGoal, one world seed in 300): then the next seed of
+        the same stream is tried, so the same episode seed still gives the same arena, up to
+        :data:`ARENA_DRAWS` times."""
+        failure: InvalidConfig | None = None
+        for _ in range(ARENA_DRAWS):
+            try:
+                return random_world(draw_seed(rng), robot, n_obstacles=self.n_obstacles, size=self.size,
+                                    goal=self.has_goal)
+            except InvalidConfig as error:
+                failure = error
+        raise InvalidConfig(f"{type(self).__name__}: no arena of {self.n_obstacles} obstacles in "
+                            f"{self.size[0]:g} x {self.size[1]:g} m for the robot {robot.name!r} in {ARENA_DRAWS} "
+                            f"draws ({failure}); expected fewer obstacles or a larger size") from failure
