@@ -175,14 +175,17 @@ _RAY_BATCH_LIMIT = 16384   # pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE: rays rayT
 TRUTH_BODIES = ("auto", "disk", "footprint")
 
 
-def _convex_footprint(robot: RobotSpec) -> np.ndarray | None:
-    """The robot's footprint for the footprint truth ``(V, 2)`` [m] (convex); ``None`` for a round robot."""
-    if robot.footprint is None:
+def _truth_footprint(robot: RobotSpec, truth: str) -> np.ndarray | None:
+    """The convex footprint ``(V, 2)`` [m] the truth ``truth`` measures (:attr:`SimConfig.truth`); ``None`` for
+    the circumscribed disk (``"disk"``, a round robot, or ``"auto"`` with a concave footprint)."""
+    if truth == "disk" or robot.footprint is None:
         return None
-    if not is_convex(robot.footprint):
-        raise InvalidConfig(f"SimConfig(truth='footprint') needs a convex footprint, got {robot.footprint!r}; "
-                            "use truth='disk' (its circumscribed disk) for a concave one")
-    return np.asarray(robot.footprint, dtype=float)
+    if is_convex(robot.footprint):
+        return np.asarray(robot.footprint, dtype=float)
+    if truth == "auto":
+        return None
+    raise InvalidConfig(f"SimConfig(truth='footprint') needs a convex footprint, got {robot.footprint!r}; "
+                        "use truth='disk' (its circumscribed disk) for a concave one")
 
 
 class _CastLidar(NamedTuple):
@@ -392,9 +395,7 @@ class BulletSim:
         self._finalizer = weakref.finalize(self, _disconnect, self._bullet, self._client)
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
-        self._footprint = None if config.truth == "disk" or (
-            config.truth == "auto" and (robot.footprint is None or not is_convex(robot.footprint))) \
-            else _convex_footprint(robot)
+        self._footprint = _truth_footprint(robot, config.truth)
         self._mover_bodies = [self._build_mover(mover.shape) for mover in self._movers]
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,

@@ -381,10 +381,9 @@ class SafetyFilter(abc.ABC):
         self.robot = robot
         self.dt = _checks.duration("dt", dt, high=MAX_DT)
         self.body = body if body is not None else BodyModel.disk(robot)
-        self._other_bodies = tuple(other_bodies)
         #: Largest distance from the base origin to any body model the rows may use [m]: the stopping reach,
         #: the horizon and the memory are measured from it.
-        self.reach = max(b.reach for b in (self.body, *self._other_bodies))
+        self.reach = max(b.reach for b in (self.body, *other_bodies))
         self.scan_timeout = _checks.duration("scan_timeout", scan_timeout, high=1e9)
         self.compensate_latency = _checks.boolean("compensate_latency", compensate_latency)
         self.max_gap = _checks.number("max_gap", max_gap, low=0.0, high=2.0 * math.pi)

@@ -260,10 +260,11 @@ class CBFSafetyFilter(SafetyFilter):
     m2wr's 0.292 m radius against its 0.15 m half-width). While
     :attr:`~safenav.filters.base.SafetyFilter.narrow` is set (the escape sets it while it drives
     through a gap the disk does not fit) the rows are built from ``narrow_body`` (default the cover
-    of the footprint by ``n_disks`` disks, no look-ahead; :attr:`rows_body` says which), taken only
-    for an answer with status ``OK``/``LATE`` (its ``H >= 0`` then, so the barrier condition holds
-    from there on for that body), and left, once the flag is cleared, for the disk when the disk's
-    own barrier is not negative and its answer too is ``OK``/``LATE``. Either body covers
+    of the footprint by ``n_disks`` disks, no look-ahead; :attr:`rows_body` says which), tried from
+    the shorter look-ahead once its own barrier has ``LOOKAHEAD_ROOM`` and taken only for an answer
+    with status ``OK``/``LATE`` (its ``H >= 0`` then, so the barrier condition holds from there on
+    for that body), and left, once the flag is cleared, for the disk when the disk's own barrier is
+    not negative and its answer too is ``OK``/``LATE``. Either body covers
     the footprint, so either keeps the footprint ``margin`` from every point. The cover's end
     disks reach past the circumscribed disk along the heading: the stopping reach, the horizon
     and the memory are measured from the farther (:attr:`~safenav.filters.SafetyFilter.reach`); the
@@ -685,11 +686,12 @@ class CBFSafetyFilter(SafetyFilter):
             tries.append("short")
         for shape in tries:
             # Another body or a longer look-ahead only once its barrier, over every point of this call, has room
-            # (LOOKAHEAD_ROOM from the shorter look-ahead to the longer, against flapping; into and out of the
-            # narrow body, which only the caller's flag asks for, 0) and its answer needs no relaxation: every
-            # answer keeps the rows of the shape it used.
-            room = LOOKAHEAD_ROOM if self._shape_name == "short" else 0.0
-            if shape == self._shape_name or self._barrier_with(view, self._shapes[shape]) < room:
+            # and its answer needs no relaxation: every answer keeps the rows of the shape it used. The room is
+            # LOOKAHEAD_ROOM from the shorter look-ahead (to the longer one, or to the narrow body: a call that
+            # asks for it first takes the shorter look-ahead above), against flapping; 0 out of the narrow body,
+            # which only the caller's flag asks for again.
+            room = 0.0 if self._shape_name == "narrow" else LOOKAHEAD_ROOM
+            if self._barrier_with(view, self._shapes[shape]) < room:
                 continue
             keep = self._shape_name
             self._use(shape)

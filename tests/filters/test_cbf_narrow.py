@@ -82,30 +82,49 @@ def test_through_a_gap_only_the_narrow_body_fits_with_the_flag_and_back_to_the_d
     held = CBFSafetyFilter(robot, DT, narrow_body="cover")
     scene, width = narrow_corridor(robot, filt)
     assert width < 2.0 * filt.corridor_half_width - 0.2
-    pose, velocity = Pose2D(), np.zeros(2)
-    held_pose, held_velocity = Pose2D(), np.zeros(2)
-    shapes, worst = [], math.inf
-    for _ in range(400):
-        filt.narrow = filt.passage = pose.x < 1.9
-        scan = synthetic_scan(robot, scene, pose)
-        result = filt.filter((0.4, 0.0), scan, velocity=velocity)
+
+    def check(result, scan, velocity):
         assert result.status is FilterStatus.OK
         assert np.all(full_residual(checker_for(robot, filt), result.u_nom, scan, velocity, result.u) <= 1e-6)
         if result.modified and filt.rows_body.name != "disk":
             assert "cover3 body, look-ahead 0 m (a narrow gap)" in result.message
-        shapes.append(filt.rows_body.name)
-        worst = min(worst, footprint_clearance(robot, scene, pose))
-        velocity = result.u.copy()
-        for _ in range(10):
-            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT / 10)
-        held.passage = True
-        stopped = held.filter((0.4, 0.0), synthetic_scan(robot, scene, held_pose), velocity=held_velocity)
-        held_velocity = stopped.u.copy()
-        for _ in range(10):
-            held_pose = unicycle_step(held_pose, float(held_velocity[0]), float(held_velocity[1]), DT / 10)
+
+    pose, shapes, worst, held_pose, held_velocity = corridor_run(robot, scene, filt, held, lambda f: f.rows_body,
+                                                                 check)
     assert worst >= filt.margin - 1e-9
     assert pose.x > 2.4 and shapes[0] == "cover3" and shapes[-1] == "disk"
     assert held_pose.x < 0.8 and abs(held_velocity[0]) < 0.02 and held.rows_body.name == "disk"
+
+
+def corridor_run(robot, scene: Scene, filt, held, body_of, check):
+    """400 periods of the nominal (0.4, 0) through ``scene`` (the corridor of :func:`narrow_corridor`): ``filt``
+    with ``narrow`` and ``passage`` set until 1.9 m ahead, ``check(result, scan, velocity)`` on each of its answers;
+    ``held`` beside it with ``passage`` only. Returns ``filt``'s final pose, the name of the body of each answer
+    (``body_of(filt)``), the footprint's smallest true clearance [m], and ``held``'s final pose and velocity."""
+    pose, velocity = Pose2D(), np.zeros(2)
+    held_pose, held_velocity = Pose2D(), np.zeros(2)
+    bodies, worst = [], math.inf
+    for _ in range(400):
+        filt.narrow = filt.passage = pose.x < 1.9
+        scan = synthetic_scan(robot, scene, pose)
+        result = filt.filter((0.4, 0.0), scan, velocity=velocity)
+        check(result, scan, velocity)
+        bodies.append(body_of(filt).name)
+        worst = min(worst, footprint_clearance(robot, scene, pose))
+        velocity = result.u.copy()
+        pose = advance(pose, velocity)
+        held.passage = True
+        stopped = held.filter((0.4, 0.0), synthetic_scan(robot, scene, held_pose), velocity=held_velocity)
+        held_velocity = stopped.u.copy()
+        held_pose = advance(held_pose, held_velocity)
+    return pose, bodies, worst, held_pose, held_velocity
+
+
+def advance(pose: Pose2D, u: np.ndarray) -> Pose2D:
+    """``pose`` after one period of the command ``u`` [m/s, rad/s], in ten exact unicycle steps."""
+    for _ in range(10):
+        pose = unicycle_step(pose, float(u[0]), float(u[1]), DT / 10)
+    return pose
 
 
 def test_the_narrow_body_is_taken_only_where_its_own_barrier_holds():
@@ -151,8 +170,7 @@ def door_run(narrow_body: str | None, door_half: float, duration: float = 25.0, 
         assert not (handing and not result.escape and inner.narrowed)
         handing = bool(result.escape) and "gap" in result.escape
         velocity = result.u.copy()
-        for _ in range(10):
-            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT / 10)
+        pose = advance(pose, velocity)
         worst = min(worst, footprint_clearance(robot, scene, pose))
     return pose, worst, gaps, inner.margin, goal
 

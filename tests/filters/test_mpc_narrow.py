@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from safenav import Pose2D, UnknownName, preset, unicycle_step
+from safenav import UnknownName, preset
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter
 from safenav.synthetic import Circle, Scene, synthetic_scan
-from tests.filters.test_cbf_narrow import DT, door_run, footprint_clearance, narrow_corridor
+from tests.filters.test_cbf_narrow import DT, corridor_run, door_run, narrow_corridor
 
 
 def mpc(robot, **settings) -> MPCSafetyFilter:
@@ -37,24 +37,14 @@ def test_the_mpc_plans_the_cover_through_a_gap_only_it_fits_and_the_disk_after()
     robot = preset("m2wr")
     filt, held = mpc(robot), mpc(robot)
     scene, _ = narrow_corridor(robot, CBFSafetyFilter(robot, DT))
-    pose, velocity, held_pose, held_velocity = Pose2D(), np.zeros(2), Pose2D(), np.zeros(2)
-    bodies, worst = [], math.inf
-    for _ in range(400):
-        filt.narrow = filt.passage = pose.x < 1.9
-        result = filt.filter((0.4, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
+
+    def check(result, scan, velocity):
         assert result.status is FilterStatus.OK
         if result.modified and filt.plan_body.name != "disk":
             assert "cover3 body (a narrow gap)" in result.message
-        bodies.append(filt.plan_body.name)
-        worst = min(worst, footprint_clearance(robot, scene, pose))
-        velocity = result.u.copy()
-        for _ in range(10):
-            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT / 10)
-        held.passage = True
-        stopped = held.filter((0.4, 0.0), synthetic_scan(robot, scene, held_pose), velocity=held_velocity)
-        held_velocity = stopped.u.copy()
-        for _ in range(10):
-            held_pose = unicycle_step(held_pose, float(held_velocity[0]), float(held_velocity[1]), DT / 10)
+
+    pose, bodies, worst, held_pose, held_velocity = corridor_run(robot, scene, filt, held, lambda f: f.plan_body,
+                                                                 check)
     assert worst >= filt.margin - 1e-9
     assert pose.x > 2.4 and bodies[0] == "cover3" and bodies[-1] == "disk"
     assert held_pose.x < 0.8 and abs(held_velocity[0]) < 0.02 and held.plan_body.name == "disk"
