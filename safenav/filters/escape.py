@@ -33,21 +33,21 @@ nominal by an escape command until the nominal's way is clear again:
    (something within the following distance ahead every way it faced): along the direction whose
    corridor, among the current and remembered points, is free the longest, up to the following
    distance short of its end, or as far as the filter lets it; then it follows again.
-5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below),
-   clear for twice ``clear_distance`` (it leads somewhere) and with obstacle points on both
-   sides near it (within ``gap_band`` of its edges: a passage, a door, not open floor), is a
-   gap the body fits through: the escape turns into it, aims through its middle, drives
-   ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on and
-   looks again after ``gap_retry``). Meanwhile it sets the wrapped filter's ``passage``, so that a
-   filter that trades room for steering uses its narrow settings (the CBF its ``min_lookahead``;
-   never a weaker guarantee). Gaps are looked for with the body's corridor first, then with the
-   filter's narrow body's (``gap_half_width``: the CBF's and the MPC's cover of a long robot's
-   footprint); through a gap only that one fits, or one where the filter holds the body (the range
-   noise takes what the scan showed to spare), it also sets the filter's ``narrow``, and the filter
-   keeps the footprint clear with the narrow body's rows or plans (its guarantee is the footprint's
-   either way). It sets it too while it turns in place (3. and the gap's turns):
-   the CBF's control point ahead of the body swings sideways in a turn, and between two
-   obstacles it can forbid both turns while the body itself would move nowhere.
+5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below), clear for twice
+   ``clear_distance`` (it leads somewhere) and with obstacle points on both sides near it (within ``gap_band``
+   of its edges: a passage, a door, not open floor), is a gap the body fits through: the escape turns into it,
+   aims through its middle, drives ``clear_distance`` along it, then hands back (if the filter blocks it, it
+   follows on and looks again after ``gap_retry``). A gap that leads back to a place where a deadlock began (6.:
+   one lies ahead along it, within twice ``clear_distance`` and twice ``clear_half_width`` of its centre line)
+   is not taken: the next deadlock's escape would take the gap the last one came through. Meanwhile it sets the
+   wrapped filter's ``passage``, so that a filter that trades room for steering uses its narrow settings (the
+   CBF its ``min_lookahead``; never a weaker guarantee). Gaps are looked for with the body's corridor first,
+   then with the filter's narrow body's (``gap_half_width``: the CBF's and the MPC's cover of a long robot's
+   footprint); through a gap only that one fits, or one where the filter holds the body (the range noise takes
+   what the scan showed to spare), it also sets the filter's ``narrow``, and the filter keeps the footprint
+   clear with the narrow body's rows or plans (its guarantee is the footprint's either way). It sets it too
+   while it turns in place (3. and the gap's turns): the CBF's control point ahead of the body swings sideways
+   in a turn, and between two obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
    the robot was heading when the deadlock began, tracked by the odometry pose when the caller
    gives one, else by integrating the commands sent, as in a bug algorithm), or in the direction
@@ -557,7 +557,23 @@ class Escape:
         left, right = _side_room(known, directions, cfg.clear_distance, width + cfg.gap_band)
         room = np.minimum(*_side_room(known, directions, 2.0 * cfg.clear_distance, width))
         passage = self._seen(scans, directions) & (room >= width) & np.isfinite(left) & np.isfinite(right)
-        return passage, np.minimum(left, right)
+        return passage & ~self._back(directions), np.minimum(left, right)
+
+    def _back(self, directions: np.ndarray) -> np.ndarray:
+        """Which base-frame ``directions`` [rad] lead back to a place where a deadlock began: one lies ahead
+        along them, beyond ``clear_half_width`` and within twice ``clear_distance``, and within twice
+        ``clear_half_width`` of their centre line. A gap that leads there is not taken: after a gap that led
+        sideways with the way still blocked, the next deadlock's escape took the same gap back, to and fro
+        between two obstacles."""
+        back = np.zeros(len(directions), dtype=bool)
+        if not self._spots:
+            return back
+        x, y, yaw = self._odometry
+        spots = np.array(self._spots) - np.array([x, y])
+        along, across = _along_across(spots, yaw + directions)
+        near = (along > self.clear_half_width) & (along < 2.0 * self.config.clear_distance) & \
+            (np.abs(across) < 2.0 * self.clear_half_width)
+        return near.any(axis=0)
 
     def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray, length: float | None = None) -> np.ndarray:
         """Which base-frame ``directions`` [rad] some lidar looks along now, at least partly, over a corridor

@@ -346,6 +346,29 @@ def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlock
     assert all(x > 2.0 or abs(y) > half for x, y, _ in handed_back), handed_back
 
 
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_a_gap_that_leads_back_to_where_a_deadlock_began_is_not_taken(make):
+    """A wall 0.6 m ahead with two doors, one 27 degrees left of the heading and one 37 degrees right: the gap
+    search takes the one nearer the way the robot was going, unless a deadlock began beyond it (goal_m2wr seed 4:
+    a gap that led sideways, the way still blocked, handed back into the next deadlock, whose escape took the same
+    gap back, to and fro between two obstacles until the episode ended). The deadlock places are the escape's
+    own record (``_spots``, set here as a deadlock beyond the door would have left it)."""
+    robot = preset("rosbot")
+    escape = Escape(make(robot, 0.05))
+    x, width, doors = 0.6, 2.0 * escape.clear_half_width + 0.1, (0.3, -0.45)
+    ends = sorted([-3.0, 3.0] + [centre + side * 0.5 * width for centre in doors for side in (-1, 1)])
+    scene = Scene.of(*(Segment((x, ends[i]), (x, ends[i + 1])) for i in range(0, len(ends), 2)))
+    scans = (synthetic_scan(robot, scene),)
+    known = scans[0].points()
+    bearings = [math.atan2(centre, x) for centre in doors]
+    assert escape._find_gap(known, scans) == pytest.approx(bearings[0], abs=math.radians(4.0))
+    for door, other in ((0, 1), (1, 0)):
+        escape._spots = [1.6 * np.array([math.cos(bearings[door]), math.sin(bearings[door])])]
+        assert escape._find_gap(known, scans) == pytest.approx(bearings[other], abs=math.radians(4.0))
+    escape._spots = [np.zeros(2)]       # where this deadlock began: here, behind every way out
+    assert escape._find_gap(known, scans) == pytest.approx(bearings[0], abs=math.radians(4.0))
+
+
 def _escape_points(filter_name: str, latency: bool) -> list[tuple[Pose2D, np.ndarray, int]]:
     """Drive the m2wr with the escape towards a goal behind a wall, the odometry pose given (and with
     ``latency``, each scan one period old, its age and the velocity given); every ``known`` array the escape's
