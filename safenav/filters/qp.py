@@ -290,10 +290,11 @@ class DirectDAQP:
         if exitflag in (DAQP_CYCLING, DAQP_ITERATION_LIMIT):
             # Near-degenerate vertices (many rows through one point, e.g. a stopped base) can make the
             # active-set iteration cycle, or a warm start wander, at a feasibility tolerance near
-            # round-off: solve again from a cold start, then with the tolerance ten times looser
-            # (still far below every filter's own check of the answer).
+            # round-off: solve again from a cold start, then with the tolerance ten and a hundred times
+            # looser (1e-8 by default: still a hundred times below every filter's own check of the answer;
+            # the m2wr's MPC standing at its margin cycled at 1e-10 and 1e-9 even from cold).
             cold = np.where(sense == DAQP_EQUALITY, DAQP_EQUALITY, 0).astype(np.int32)
-            for tolerance in (self.primal_tol, 10.0 * self.primal_tol):
+            for tolerance in (self.primal_tol, 10.0 * self.primal_tol, 100.0 * self.primal_tol):
                 x, _, exitflag, info = self._solve(P, q, G, upper, lower, cold.copy(), primal_tol=tolerance,
                                                    iter_limit=self.iter_limit)
                 if exitflag in (1, 2):

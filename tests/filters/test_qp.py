@@ -47,6 +47,27 @@ def test_direct_daqp_solves_a_problem_it_first_cycles_on():
         assert cost <= best + 1e-6 * max(1.0, abs(best))
 
 
+def test_direct_daqp_solves_a_problem_it_cycles_on_from_cold_at_a_tight_tolerance():
+    """An SQP step of the MPC for the m2wr standing at its margin in the dead end (dead_end_m2wr, seed 2,
+    t = 22.75 s): DAQP cycles on it from a cold start at 1e-10 and at 1e-9 (the filter fell back to its last
+    plan, and the slow closed-loop test of that cell failed on it); at 1e-8 it solves."""
+    data = np.load(DATA / "daqp_cycling_cold.npz")
+    qp = QPData(data["P"], data["q"], data["G"], data["h"], data["lb"], data["ub"],
+                data["h_lower"] if data["h_lower"].size else None)
+    daqp = pytest.importorskip("daqp")
+    upper, lower = np.concatenate((qp.ub, qp.h)), np.concatenate((qp.lb, qp.h_lower))
+    sense = np.where(lower == upper, 5, 0).astype(np.int32)
+    for tolerance in (1e-10, 1e-9):
+        *_, exitflag, _ = daqp.solve(qp.P.copy(), qp.q.copy(), qp.G.copy(), upper, lower, sense.copy(),
+                                     primal_tol=tolerance)
+        assert exitflag == -2, (tolerance, exitflag)
+    outcome = make_backend("daqp").solve(qp)
+    assert outcome.x is not None, outcome.status
+    x = outcome.x
+    assert np.all(qp.G @ x <= qp.h + 1e-8) and np.all(qp.G @ x >= qp.h_lower - 1e-8)
+    assert np.all(x >= qp.lb - 1e-8) and np.all(x <= qp.ub + 1e-8)
+
+
 def _installed() -> tuple[str, ...]:
     from safenav.filters import available_solvers
 
