@@ -396,14 +396,15 @@ class Escape:
         length = self.config.clear_distance
         if not self._spots:
             return length
+        along, across = self._spot_offsets(np.array([direction]))
+        passed = (along > 0.0) & (np.abs(across) < 2.0 * self.clear_half_width)
+        return max(length, float(along[passed].max()) + length) if passed.any() else length
+
+    def _spot_offsets(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(S, D)`` each place where a deadlock began: its distance [m] along each base-frame direction [rad]
+        from the base, and to the left of that direction's centre line."""
         x, y, yaw = self._odometry
-        c, s = math.cos(yaw + direction), math.sin(yaw + direction)
-        for spot in self._spots:
-            dx, dy = spot[0] - x, spot[1] - y
-            along, across = c * dx + s * dy, c * dy - s * dx
-            if along > 0.0 and abs(across) < 2.0 * self.clear_half_width:
-                length = max(length, along + self.config.clear_distance)
-        return length
+        return _along_across(np.array(self._spots) - np.array([x, y]), yaw + directions)
 
     def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float) -> float | None:
         """Bearing [rad] of the opening nearest the ``intent`` bearing [rad], within ``gap_window`` of it;
@@ -565,12 +566,9 @@ class Escape:
         ``clear_half_width`` of their centre line. A gap that leads there is not taken: after a gap that led
         sideways with the way still blocked, the next deadlock's escape took the same gap back, to and fro
         between two obstacles."""
-        back = np.zeros(len(directions), dtype=bool)
         if not self._spots:
-            return back
-        x, y, yaw = self._odometry
-        spots = np.array(self._spots) - np.array([x, y])
-        along, across = _along_across(spots, yaw + directions)
+            return np.zeros(len(directions), dtype=bool)
+        along, across = self._spot_offsets(directions)
         near = (along > self.clear_half_width) & (along < 2.0 * self.config.clear_distance) & \
             (np.abs(across) < 2.0 * self.clear_half_width)
         return near.any(axis=0)
