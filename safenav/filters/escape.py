@@ -9,7 +9,11 @@ nominal by an escape command until the nominal's way is clear again:
 1. **Start** at the call after the wrapped filter reports a deadlock, or after it has held back a
    clear forward request (``v`` of the nominal over a quarter of ``v_max``, less than a tenth of it
    let through) for its ``deadlock_time`` whatever it did with the yaw rate (a predictive filter can
-   swing the heading to and fro in front of a wall without ever reporting a stall). The wrapped
+   swing the heading to and fro in front of a wall without ever reporting a stall), or after the
+   robot has stood (both commands under a tenth of the limits) for ``stand_time`` while the nominal
+   asked to drive straight on (a clear forward request, ``|omega|`` under a quarter of ``omega_max``:
+   no turn of the nominal's own to wait for; standing before a hard turn is how the yaw rate
+   reverses). The result's reason says which of the three started it. The wrapped
    filter is called once per call, with the nominal or with the escape's command: a call is one
    period to it (it carries its memory, shifts its plan and counts the stall).
 2. **Side, once per deadlock.** Round the blocking obstacle (the point behind the filter's binding
@@ -150,6 +154,11 @@ class EscapeConfig:
             and the robot has stood still for ``STALLED_ESCAPE`` (the turn lasts until the base has
             turned that much, or the filter blocks the turn too: a turn of one period, at the
             acceleration limit, barely starts).
+        stand_time: how long the robot may stand (both commands sent under a tenth of the limits) while
+            the nominal asks to drive straight on (``v`` over a quarter of ``v_max``, ``|omega|`` under a
+            quarter of ``omega_max``) before an escape starts [s]: a request no turn explains, let through
+            not at all, is a deadlock long before the filter's ``deadlock_time`` (``math.inf``: only the
+            other two starts).
     """
 
     speed: float = 0.4
@@ -164,6 +173,7 @@ class EscapeConfig:
     gap_band: float = 0.25
     gap_retry: float = 0.5
     stall_turn: float = 0.25 * math.pi
+    stand_time: float = 0.5
 
     def __post_init__(self) -> None:
         name = "EscapeConfig."
@@ -179,6 +189,7 @@ class EscapeConfig:
         _checks.positive(name + "gap_band", self.gap_band)
         _checks.number(name + "gap_retry", self.gap_retry, low=0.0)
         _checks.number(name + "stall_turn", self.stall_turn, low=0.0, high=2.0 * math.pi)
+        _checks.number(name + "stand_time", self.stand_time, low=0.0, low_open=True, finite=False)
 
 
 class Escape:
@@ -213,6 +224,8 @@ class Escape:
         self._out: float | None = None   # heading of the way out being driven, since the deadlock began [rad]
         self._out_left = 0.0    # distance still to drive along it [m]
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
+        self._standing = 0.0    # how long the robot has stood while the nominal asked to drive straight on [s]
+        self._started_by = ""   # why the current escape started (the reason says it)
         self._odometry = Pose2D()        # the base's pose since the reset (odometry, else the commands) [m, m, rad]
         self._spots: list[np.ndarray] = []   # where deadlocks began, in the frame of _odometry [m]
         self._pending = False   # a deadlock was reported at the last call: the escape starts at this one
@@ -264,9 +277,9 @@ class Escape:
         self.inner.reset()
         self._side, self._elapsed, self._backing, self._last_side, self._start_yaw = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled, self._still, self._turn_left = math.inf, 0.0, 0.0, 0.0
-        self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._gap, self._gap_left, self._gap_wait, self._held, self._standing = None, 0.0, 0.0, 0.0, 0.0
         self._spun, self._out, self._out_left = 0.0, None, 0.0
-        self._odometry, self._spots, self._pending, self._blocking = Pose2D(), [], False, None
+        self._odometry, self._spots, self._pending, self._blocking, self._started_by = Pose2D(), [], False, None, ""
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         return self.filter(u_nom, scan, **kwargs)
@@ -299,13 +312,18 @@ class Escape:
             self._since += held
             forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
             self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
-            if result.deadlock is not None or self._held >= self.inner.deadlock_time - 1e-9:
+            straight = forward and abs(nominal[1]) <= FORWARD_REQUEST * self.robot.omega_max
+            standing = straight and bool(np.all(np.abs(result.u) < STANDING * np.abs(self.robot.upper)))
+            self._standing = self._standing + held if standing else 0.0
+            cause = self._cause(result)
+            if cause:
                 # The escape starts at the next call: the filter is called once per period (a second call
                 # now would carry its memory, shift its plan and count the stall a second time).
                 point = None if result.reason is None else result.reason.point
                 moved = None if point is None else unicycle_step(Pose2D(), float(result.u[0]), float(result.u[1]),
                                                                  held).to_local(np.array([point]))[0]
                 self._pending, self._blocking = True, None if moved is None else (float(moved[0]), float(moved[1]))
+                self._started_by = cause
             return result
         command = self._command(points, known, scans)
         # Through a gap the body fits, and turning in place, the filter uses its narrow settings (the CBF's
@@ -341,13 +359,23 @@ class Escape:
         else:
             doing = f"following the obstacle with it on the {'right' if self._side > 0 else 'left'}"
         description = f"{doing}, turning {side}, for {self._elapsed:.1f} s"
-        reason = Reason("escape", f"deadlocked: {description}; command ({command[0]:.2f}, {command[1]:.2f}) sent "
-                                  f"through the {self.inner.name} filter", None if result.reason is None
-                        else result.reason.point)
+        reason = Reason("escape", f"deadlocked ({self._started_by}): {description}; command ({command[0]:.2f}, "
+                                  f"{command[1]:.2f}) sent through the {self.inner.name} filter",
+                        None if result.reason is None else result.reason.point)
         message = str(reason) + (f"; {result.message}" if result.message else "")
         values = {field.name: getattr(result, field.name) for field in dataclasses.fields(result)}
         values.update(u_nom=nominal, reason=reason, message=message, escape=description, deadlock=None)
         return FilterResult(**values)
+
+    def _cause(self, result: FilterResult) -> str:
+        """Why an escape starts at the next call (empty: it does not; see the module docstring, 1.)."""
+        if result.deadlock is not None:
+            return f"the filter reported it {result.deadlock}"
+        if self._held >= self.inner.deadlock_time - 1e-9:
+            return f"the filter held back a forward request for {self._held:.1f} s"
+        if self._standing >= self.config.stand_time - 1e-9:
+            return f"the robot stood for {self._standing:.1f} s while the nominal asked to drive straight on"
+        return ""
 
     # ------------------------------------------------------------------ the escape
 
@@ -375,7 +403,7 @@ class Escape:
         self._side, self._elapsed, self._backing, self._stalled = side, 0.0, 0.0, 0.0
         self._still, self._turn_left = 0.0, 0.0
         self._start_yaw = self._odometry.yaw
-        self._gap, self._gap_left, self._gap_wait, self._held = None, 0.0, 0.0, 0.0
+        self._gap, self._gap_left, self._gap_wait, self._held, self._standing = None, 0.0, 0.0, 0.0, 0.0
         self._spun, self._out, self._out_left = 0.0, None, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
 

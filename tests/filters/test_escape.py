@@ -497,3 +497,47 @@ def test_in_a_pocket_with_something_ahead_every_way_the_escape_drives_out_instea
     assert outs, "the escape never drove out"
     assert max(abs(math.sin(yaw)) for yaw in outs) < 0.5, outs   # along the long axis (it drives within 0.5 rad)
     assert longest <= WAY_OUT_TURN + math.pi + 0.1, longest
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_a_robot_held_standing_while_asked_to_drive_straight_on_escapes_after_stand_time(make):
+    """A wall just beyond the margin and a nominal driving straight at it: the filter lets nothing through. Before
+    stand_time there was no reason to wait the filter's whole deadlock_time (1.5 s) here, and in the matrix those
+    1.5 s were most of the escape rows' stuck time (clutter_m2wr's wall follower with the MPC: 1.24 s an episode).
+    The escape starts at the call after the robot has stood for stand_time, and says why."""
+    robot, dt = preset("rosbot"), 0.05
+
+    def first_escape(**settings: float) -> tuple[int, str]:
+        inner = make(robot, dt) if make is CBFSafetyFilter else make(robot, dt, budget=math.inf)
+        scene = Scene.of(wall(robot.radius + inner.margin + 0.01))
+        escape = Escape(inner, **settings)
+        pose, velocity = Pose2D(), np.zeros(2)
+        for step in range(60):
+            result = escape.filter((robot.v_max, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
+            if result.escape:
+                return step, result.reason.detail
+            assert np.all(np.abs(result.u) < 0.1 * robot.upper), (step, result.u)    # standing from the first call
+            velocity = np.array(result.u)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+        raise AssertionError("no escape in 3 s")
+
+    step, why = first_escape()
+    assert step == 10, step     # stood for calls 0..9 (0.5 s), escapes at the next
+    assert "the robot stood for 0.5 s while the nominal asked to drive straight on" in why, why
+    step, why = first_escape(stand_time=math.inf)
+    assert step == 30 and "the filter reported it deadlocked for 1.5 s" in why, (step, why)
+
+
+@pytest.mark.parametrize("turn", [-0.5, 0.5])
+def test_standing_before_a_hard_turn_of_the_nominal_waits_for_the_filters_deadlock_time(turn):
+    """Standing is how the yaw rate reverses (the MPC held the puzzlebot at a door's edge for 0.6 s while the
+    nominal swung from left to right, then drove through): only a nominal that drives straight on (|omega| under a
+    quarter of omega_max) starts an escape after stand_time; a hard turn waits for the filter's deadlock_time."""
+    robot = preset("m2wr")
+    scene, _ = _pincer("m2wr")
+    scan = synthetic_scan(robot, scene)
+    for nominal, expected in (((robot.v_max, 0.0), 10), ((robot.v_max, 0.2 * robot.omega_max), 10),
+                              ((robot.v_max, turn * robot.omega_max), 30)):
+        escape = Escape(CBFSafetyFilter(robot, 0.05))
+        step = next(step for step in range(60) if escape.filter(nominal, scan).escape)
+        assert step == expected, (nominal, step)

@@ -206,13 +206,22 @@ def test_a_non_finite_command_brakes_with_bad_input():
 def test_state_is_json_safe_and_diagnostics_rate_limited_and_markers_optional():
     import json
 
-    core, out, _ = make_core(markers=True)
+    core, out, _ = make_core(markers=True, escape=False)
     for k in range(30):
         core.on_command(twist(0.5, 0.0), 0.05 * k)
         core.on_scan("scan", scan_message(0.4 if k < 20 else None), 0.05 * k)
         core.tick(0.05 * k, out)
     json.dumps([s.as_dict() for s in out.states], allow_nan=False)
     assert [s.time for s in out.diagnosed] == [0.0, 1.0]    # once a second while the status holds
+    # With the escape (the default) its start is published at once: the robot stood 0.5 s before the wall.
+    escaped, seen, _ = make_core()
+    for k in range(20):
+        escaped.on_command(twist(0.5, 0.0), 0.05 * k)
+        escaped.on_scan("scan", scan_message(0.4), 0.05 * k)
+        escaped.tick(0.05 * k, seen)
+    escaping = next(s for s in seen.states if s.escape)
+    assert [s.time for s in seen.diagnosed] == [0.0, escaping.time] and escaping.time == pytest.approx(0.5)
+    assert "stood for 0.5 s" in escaping.reason, escaping.reason
     footprint, points, active = out.marker_sets[0]
     assert footprint.shape == (4, 2) and len(points) and np.all(np.isin(active, points))
 
