@@ -313,7 +313,7 @@ class Escape:
             forward = nominal[0] > FORWARD_REQUEST * self.robot.v_max
             self._held = self._held + held if forward and result.u[0] < STALL_PROGRESS * nominal[0] else 0.0
             straight = forward and abs(nominal[1]) <= FORWARD_REQUEST * self.robot.omega_max
-            standing = straight and bool(np.all(np.abs(result.u) < STANDING * np.abs(self.robot.upper)))
+            standing = straight and self._stands(result.u)
             self._standing = self._standing + held if standing else 0.0
             cause = self._cause(result)
             if cause:
@@ -338,7 +338,7 @@ class Escape:
         self._elapsed += held
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
-        still = bool(np.all(np.abs(result.u) < STANDING * np.abs(self.robot.upper)))
+        still = self._stands(result.u)
         self._still = self._still + held if still else 0.0
         if self._turn_left > 0.0:
             # A turn in place after a stall lasts until the base has turned that far; a turn the filter blocks as
@@ -366,6 +366,10 @@ class Escape:
         values = {field.name: getattr(result, field.name) for field in dataclasses.fields(result)}
         values.update(u_nom=nominal, reason=reason, message=message, escape=description, deadlock=None)
         return FilterResult(**values)
+
+    def _stands(self, command: np.ndarray) -> bool:
+        """Whether a command sent leaves the robot standing: both parts under :data:`STANDING` of the limits."""
+        return bool(np.all(np.abs(command) < STANDING * np.abs(self.robot.upper)))
 
     def _cause(self, result: FilterResult) -> str:
         """Why an escape starts at the next call (empty: it does not; see the module docstring, 1.)."""
