@@ -103,9 +103,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--range-noise", metavar="STD", type=argument_type(number, low=0.0, high=1.0), default=None,
                         help="std of the simulated lidars' Gaussian range noise [m] instead of each preset's own "
                              "(the filters' margins stay the preset's: how much of a narrow door the noise takes)")
-    parser.add_argument("--mpc-reference", choices=REFERENCES, default="nominal",
-                        help="what the MPC rows track: nominal (the default filter) or cbf (MPCConfig.reference="
-                             "'cbf': the CBF's answer, braking as early as the CBF) (default: nominal)")
+    parser.add_argument("--mpc-reference", choices=REFERENCES, default=None,
+                        help="what the MPC rows track: nominal or cbf (MPCConfig.reference='cbf': the CBF's "
+                             "answer) (default: the filter's own: nominal for mpc, cbf for mpc+escape)")
     parser.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
                         help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; 0: none, the default "
                              "filter)")
@@ -166,7 +166,7 @@ def _sweep(args: argparse.Namespace) -> int:
           f"the measured velocity"
           f"{' and the odometry pose' if args.odometry else ' only'}"
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
-          f"{f'; the MPC tracks the {args.mpc_reference} reference' if args.mpc_reference != 'nominal' else ''}"
+          f"{f'; the MPC rows track the {args.mpc_reference} reference' if args.mpc_reference else ''}"
           f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}"
           f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}"
           f"{f'; body model {args.body}' if args.body != 'disk' else ''}"
@@ -224,7 +224,7 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str = "nominal", mpc_lookahead: float = 0.0,
+def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str | None = None, mpc_lookahead: float = 0.0,
           cbf_smoothing: float = 0.0, body: str = "disk") -> list[EpisodeSpec]:
     """The specs with the sweep's opt-in filter settings: the MPC rows' reference and look-ahead, the CBF rows'
     smoothing, both filters' body model (with or without the escape); the defaults leave every spec as it is."""

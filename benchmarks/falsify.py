@@ -51,7 +51,7 @@ from safenav._checks import argument_type, number
 from safenav._optional import require
 from safenav.errors import InvalidConfig
 from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
-from safenav.filters import make_filter, unescaped
+from safenav.filters import filter_settings, make_filter, unescaped
 from safenav.filters.body import BodyModel
 from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
@@ -797,7 +797,7 @@ def body_half_width(spec: RobotSpec, body: str) -> float:
 
 def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
-           mpc_references: Sequence[str] = ("nominal",), mpc_lookahead: float = 0.0,
+           mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
            min_obstacle_width: float | None = None, narrow_body: str | None = None) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base); the geometry and the nominal are searched inside each. With
@@ -807,7 +807,7 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
     cells = []
     for robot in robots:
         for filter_name in filters:
-            references = mpc_references if unescaped(filter_name) == "mpc" else ("nominal",)
+            references = mpc_references if unescaped(filter_name) == "mpc" else (None,)
             for body, reference in itertools.product(bodies, references):
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model
@@ -829,7 +829,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
 
 @functools.cache
 def _sighting(robot: str, filter_name: str, dt: float, settings: str) -> tuple[float, float]:
-    safety = make_filter(unescaped(filter_name), robot_spec(json.loads(robot)), dt, **json.loads(settings))
+    safety = make_filter(unescaped(filter_name), robot_spec(json.loads(robot)), dt,
+                         **filter_settings(filter_name, **json.loads(settings)))
     return safety.horizon_reach(), safety.smallest_obstacle
 
 
@@ -894,8 +895,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--geometries", nargs="+", default=list(GEOMETRIES), choices=GEOMETRIES)
     parser.add_argument("--nominals", nargs="+", default=list(SEARCHED_NOMINALS), choices=SEARCHED_NOMINALS)
     parser.add_argument("--bodies", nargs="+", default=list(BODIES), choices=BODIES)
-    parser.add_argument("--mpc-reference", nargs="+", default=["nominal"], choices=REFERENCES,
-                        help="what the MPC cells track (each a cell of its own): nominal, cbf (default: nominal)")
+    parser.add_argument("--mpc-reference", nargs="+", default=[None], choices=REFERENCES,
+                        help="what the MPC cells track (each a cell of its own): nominal, cbf (default: the "
+                             "filter's own: nominal for mpc, cbf for mpc+escape)")
     parser.add_argument("--mpc-lookahead", type=argument_type(number, low=0.0, high=10.0), default=0.0, metavar="L",
                         help="the MPC cells' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
     parser.add_argument("--min-obstacle-width", type=argument_type(number, low=0.0, low_open=True, high=10.0),

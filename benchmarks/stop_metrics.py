@@ -64,7 +64,7 @@ from benchmarks.common import (
 from safenav._checks import argument_type, choice, integer, number, positive
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments.runner import reproducible_settings
-from safenav.filters import FILTER_NAMES, make_filter, unescaped
+from safenav.filters import FILTER_NAMES, filter_settings, make_filter, unescaped
 from safenav.filters.mpc.config import REFERENCES
 from safenav.geometry import Pose2D
 from safenav.reference import Policy
@@ -211,7 +211,7 @@ class StopJob:
     pass_gap: float = 0.3
     stay: float = 5.0
     real_time: bool = False
-    mpc_reference: str = "nominal"
+    mpc_reference: str | None = None
     mpc_lookahead: float = 0.0
 
 
@@ -301,11 +301,13 @@ def passes(row: dict[str, Any]) -> bool:
 
 
 def label(record: dict[str, Any]) -> str:
-    """The row name of an episode's filter: ``mpc (cbf reference)`` for the MPC tracking the CBF."""
+    """The row name of an episode's filter: ``mpc (cbf reference)`` for the MPC tracking the CBF (a reference
+    is named where it is not the filter's own: :data:`safenav.filters.ESCAPE_PRESETS`)."""
     if unescaped(record["filter"]) != "mpc":
         return record["filter"]
-    reference, lookahead = record.get("mpc_reference", "nominal"), record.get("mpc_lookahead", 0.0)
-    told = ([] if reference == "nominal" else [f"{reference} reference"]) + (
+    reference, lookahead = record.get("mpc_reference"), record.get("mpc_lookahead", 0.0)
+    own = filter_settings(record["filter"]).get("reference", "nominal")
+    told = ([] if reference in (None, own) else [f"{reference} reference"]) + (
         [f"look-ahead {lookahead:g} m"] if lookahead else [])
     return record["filter"] + (f" ({', '.join(told)})" if told else "")
 
@@ -370,9 +372,10 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                         help="pass-beside: the walker passes this far beside the body [m] (default: 0.3)")
     parser.add_argument("--stay", type=argument_type(positive), default=5.0,
                         help="step-in: how long the walker stands in the path [s] (default: 5, as in Nav2's bag)")
-    parser.add_argument("--mpc-reference", type=names, default=["nominal"], metavar="A,B",
-                        help="what the MPC rows track, each a row of its own: nominal (the default filter), "
-                             "cbf (MPCConfig.reference='cbf': brakes as early as the CBF) (default: nominal)")
+    parser.add_argument("--mpc-reference", type=names, default=None, metavar="A,B",
+                        help="what the MPC rows track, each a row of its own: nominal, cbf (MPCConfig.reference="
+                             "'cbf': brakes as early as the CBF) (default: the filter's own: nominal for mpc, cbf "
+                             "for mpc+escape)")
     parser.add_argument("--mpc-lookahead", type=argument_type(number, low=0.0, high=10.0), default=0.0, metavar="L",
                         help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; default 0: none)")
     parser.add_argument("--quick", action="store_true", help="one seed")
@@ -386,12 +389,13 @@ def main(argv: Sequence[str] | None = None, prog: str = "stop_metrics") -> int:
 def _run(args: argparse.Namespace) -> int:
     robots = [choice("robot", name, tuple(CRUISE_SPEED)) for name in args.robots]
     filters = [choice("filter", name, FILTER_NAMES) for name in args.filters]
-    references = [choice("MPC reference", name, REFERENCES) for name in args.mpc_reference]
+    references = ([None] if args.mpc_reference is None
+                  else [choice("MPC reference", name, REFERENCES) for name in args.mpc_reference])
     seeds = 1 if args.quick else args.seeds
     jobs = [StopJob(robot, name, episode, seed, gap=args.gap, pass_gap=args.pass_gap, stay=args.stay,
                     real_time=args.real_time, mpc_reference=reference, mpc_lookahead=args.mpc_lookahead)
             for robot in robots for name in filters
-            for reference in (references if unescaped(name) == "mpc" else ["nominal"])
+            for reference in (references if unescaped(name) == "mpc" else [None])
             for episode in EPISODES for seed in range(seeds)]
     print(f"{len(jobs)} episodes: {len(robots)} robots x {len(filters)} filters x {len(EPISODES)} episodes x "
           f"{seeds} seeds, on {where(args)}")

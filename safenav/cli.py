@@ -371,8 +371,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="drive with the filter alone: no deadlock escape (default: the filter is wrapped in "
                           "safenav.filters.escape.Escape, whose commands pass through the filter)")
     run.add_argument("--mpc-reference", metavar="REF", type=name_type("MPC reference", REFERENCES), default=None,
-                     help="with --filter mpc, what its plan tracks: nominal (the default) or cbf (the CBF's answer: "
-                          "it brakes as early as the CBF)")
+                     help="with --filter mpc, what its plan tracks: nominal or cbf (the CBF's answer: it brakes "
+                          "and steers as the CBF does) (default: cbf inside the escape, nominal with --no-escape)")
     run.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
                      help="with --filter mpc, its look-ahead control disk [m] (MPCConfig.lookahead: planned, never "
                           "verified; it turns the plan round what is ahead) (default: 0, none)")

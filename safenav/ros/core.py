@@ -44,7 +44,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from safenav.errors import LidarMismatch, SafeNavError
-from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, make_filter
+from safenav.filters import BRAKING_STATUSES, ESCAPE_SUFFIX, FilterResult, SafetyFilter, make_filter
 from safenav.filters.escape import Escape
 from safenav.geometry import Pose2D
 from safenav.robot import LidarSpec, RobotSpec
@@ -277,8 +277,10 @@ class SafetyCore:
     def _build(self, robot: RobotSpec) -> None:
         """Protect ``robot`` (its lidars are the sources) with a new filter."""
         self.robot = robot
-        safety = make_filter(self.config.filter, robot, self.config.control_period, **self.config.filter_kwargs())
-        self.filter: SafetyFilter | Escape = Escape(safety) if self.config.escape else safety
+        # By name, so that the filter inside the escape gets the escape's presets (ESCAPE_PRESETS).
+        name = self.config.filter + (ESCAPE_SUFFIX if self.config.escape else "")
+        self.filter: SafetyFilter | Escape = make_filter(name, robot, self.config.control_period,
+                                                         **self.config.filter_kwargs())
 
     def _placed(self, source: str, scan: LaserScan) -> LaserScan:
         """``scan`` checked against its source's lidar (:meth:`~safenav.robot.RobotSpec.match_scan`).

@@ -153,6 +153,9 @@ def test_an_unknown_mpc_reference_is_a_usage_error(capsys):
 
 def test_the_mpc_lookahead_is_its_own_row_label():
     assert label({"filter": "mpc", "mpc_reference": "nominal", "mpc_lookahead": 0.1}) == "mpc (look-ahead 0.1 m)"
-    assert label({"filter": "mpc+escape", "mpc_reference": "cbf", "mpc_lookahead": 0.2}) == \
-        "mpc+escape (cbf reference, look-ahead 0.2 m)"
+    assert label({"filter": "mpc+escape", "mpc_reference": "nominal", "mpc_lookahead": 0.2}) == \
+        "mpc+escape (nominal reference, look-ahead 0.2 m)"
+    # The MPC + escape tracks the CBF of its own (ESCAPE_PRESETS): only another reference is named.
+    assert label({"filter": "mpc+escape", "mpc_reference": "cbf"}) == "mpc+escape"
+    assert label({"filter": "mpc", "mpc_reference": "cbf"}) == "mpc (cbf reference)"
     assert label({"filter": "cbf", "mpc_lookahead": 0.1}) == "cbf"

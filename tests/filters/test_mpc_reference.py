@@ -16,7 +16,15 @@ import pytest
 from benchmarks.falsify import TOLERANCE, Episode, run
 from safenav import UnknownName, preset
 from safenav.errors import SafeNavError
-from safenav.filters import CBFSafetyFilter, FilterStatus, MPCConfig, MPCSafetyFilter
+from safenav.filters import (
+    ESCAPE_PRESETS,
+    CBFSafetyFilter,
+    FilterStatus,
+    MPCConfig,
+    MPCSafetyFilter,
+    filter_settings,
+    make_filter,
+)
 from safenav.filters.escape import Escape
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
@@ -84,3 +92,21 @@ def test_the_escape_wraps_the_mpc_with_its_reference():
     escape = Escape(MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf"))
     result = escape.filter([0.4, 0.0], scan, velocity=[0.0, 0.0])
     assert np.all(np.isfinite(result.u)) and result.u[0] <= 0.4
+
+
+def test_the_mpc_escape_preset_tracks_the_cbf_unless_told_otherwise():
+    # The "+escape" preset of the MPC (CLI, ROS node, gym shield, benchmarks): it tracks the CBF, so that it
+    # steers round an obstacle the nominal aims at instead of braking in front of it; the plain MPC tracks the
+    # nominal, and a reference the caller gives wins over the preset.
+    robot = preset("rosbot")
+    assert filter_settings("mpc+escape") == {"reference": "cbf"} == dict(ESCAPE_PRESETS["mpc"])
+    assert filter_settings("mpc") == {} and filter_settings("cbf+escape") == {}
+    assert filter_settings("mpc+escape", reference="nominal", horizon_time=2.0) == {
+        "reference": "nominal", "horizon_time": 2.0}
+    escaped = make_filter("mpc+escape", robot, DT)
+    assert isinstance(escaped, Escape) and escaped.inner.config.reference == "cbf"
+    assert isinstance(escaped.inner.reference, CBFSafetyFilter)
+    assert make_filter("mpc", robot, DT).config.reference == "nominal"
+    assert make_filter("mpc+escape", robot, DT, reference="nominal").inner.reference is None
+    with pytest.raises(UnknownName, match="mpc\\+escap"):
+        filter_settings("mpc+escap")

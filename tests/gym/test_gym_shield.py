@@ -261,6 +261,14 @@ def test_a_filter_instance_and_settings_by_name_are_used() -> None:
     assert named.filter.config.margin == pytest.approx(0.2)
 
 
+def test_the_mpc_inside_the_shields_escape_tracks_the_cbf_unless_told_otherwise() -> None:
+    # The escape's preset (ESCAPE_PRESETS) applies however the escape is asked for: escape=True or "mpc+escape".
+    for shield in (SafetyShield(SquareRoom(), "mpc", escape=True), SafetyShield(SquareRoom(), "mpc+escape")):
+        assert shield.filter.inner.config.reference == "cbf"
+    assert SafetyShield(SquareRoom(), "mpc", escape=True, reference="nominal").filter.inner.reference is None
+    assert SafetyShield(SquareRoom(), "mpc", escape=False).filter.config.reference == "nominal"
+
+
 # ---------------------------------------------------------------------------------------------- README
 
 README_EXAMPLE = '''

@@ -48,6 +48,13 @@ def test_robot_overrides_filter_settings_and_sources():
     assert config.stamped
 
 
+def test_the_nodes_mpc_tracks_the_cbf_inside_the_escape_and_the_nominal_without_it():
+    # The escape's preset (ESCAPE_PRESETS) reaches the node, which wraps the filter itself; a given reference wins.
+    assert make_core(filter="mpc")[0].filter.inner.config.reference == "cbf"
+    assert make_core(filter="mpc", **{"mpc.reference": "nominal"})[0].filter.inner.config.reference == "nominal"
+    assert make_core(filter="mpc", escape=False)[0].filter.config.reference == "nominal"
+
+
 def test_the_node_builds_the_mpc_that_tracks_the_cbf_from_its_parameters():
     config = NodeConfig.from_parameters({"filter": "mpc", "mpc.reference": "cbf"})
     assert dict(config.filter_settings) == {"reference": "cbf"}

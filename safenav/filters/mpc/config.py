@@ -121,7 +121,10 @@ class MPCConfig:
             compute budget): the plan brakes as early as that filter, in front of a person
             stepping in as a stop zone would (ROS 2's collision-monitor thresholds), and steers
             as it does. Only the cost changes: the constraints, the verification of every
-            answer against every point, and so the guarantee, are the MPC's own.
+            answer against every point, and so the guarantee, are the MPC's own. The MPC inside
+            the deadlock escape (``make_filter("mpc+escape", ...)``, the CLI, the ROS node, the
+            Gymnasium shield) tracks ``"cbf"`` unless told otherwise
+            (:data:`safenav.filters.ESCAPE_PRESETS`).
         slack_weight: linear and quadratic cost of the relaxation of the clearance rows [1/m, 1/m^2].
         max_iter: SQP iterations per solve.
         max_rounds: solves with missed points swapped into the slots before the call counts as failed.
