@@ -138,7 +138,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from safenav.experiments import EpisodeSpec, run_spec
-    from safenav.filters import unescaped
+    from safenav.filters import filter_settings, unescaped
     from safenav.filters.cbf import BODIES as CBF_BODIES
     from safenav.filters.mpc.config import BODIES as MPC_BODIES
     from safenav.scenarios import scenario, scenario_name
@@ -174,9 +174,10 @@ def _run(args: argparse.Namespace) -> int:
                        sim_options=sim_options, record=plot is not None or gif is not None,
                        record_scans=gif is not None, gui=args.gui)
     duration = task.duration if args.duration is None else args.duration
+    reference = filter_settings(filter_name, **options).get("reference")    # with the escape's preset
     _say(f"{args.robot or task.robot_name} in world {args.world!r} (scenario {name}, seed {args.seed}), "
          f"policy {policy}, filter {filter_name}"
-         f"{f' ({args.mpc_reference} reference)' if args.mpc_reference else ''}"
+         f"{f' ({reference} reference)' if reference else ''}"
          f"{f' (look-ahead {args.mpc_lookahead:g} m)' if args.mpc_lookahead else ''}"
          f"{f' (body {args.body}; clearances of the footprint)' if args.body != 'disk' else ''}, up to {duration:g} s")
     outcome = run_spec(spec)

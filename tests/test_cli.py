@@ -220,17 +220,19 @@ def run_spec_of(argv, monkeypatch):
     return spec
 
 
-@pytest.mark.parametrize(("argv", "expected"), [
-    ([], "cbf+escape"),
-    (["--no-escape"], "cbf"),
-    (["--filter", "mpc"], "mpc+escape"),
-    (["--filter", "zones", "--no-escape"], "zones"),
-    (["--filter", "cbf+escape"], "cbf+escape"),
-    (["--filter", "none"], "none"),              # nothing to wrap: the naive robot
+@pytest.mark.parametrize(("argv", "expected", "said"), [
+    ([], "cbf+escape", "cbf+escape"),
+    (["--no-escape"], "cbf", "cbf"),
+    (["--filter", "mpc"], "mpc+escape", "mpc+escape (cbf reference)"),     # the escape's preset, told
+    (["--filter", "mpc", "--no-escape"], "mpc", "mpc"),
+    (["--filter", "mpc", "--mpc-reference", "nominal"], "mpc+escape", "mpc+escape (nominal reference)"),
+    (["--filter", "zones", "--no-escape"], "zones", "zones"),
+    (["--filter", "cbf+escape"], "cbf+escape", "cbf+escape"),
+    (["--filter", "none"], "none", "none"),              # nothing to wrap: the naive robot
 ])
-def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, capsys, monkeypatch):
+def test_run_wraps_the_filter_in_the_escape_unless_no_escape(argv, expected, said, capsys, monkeypatch):
     assert run_spec_of(argv, monkeypatch).filter == expected
-    assert f"filter {expected}, up to" in capsys.readouterr().out
+    assert f"filter {said}, up to" in capsys.readouterr().out
 
 
 def test_run_passes_the_mpc_reference_and_refuses_it_for_another_filter(capsys, monkeypatch):
