@@ -198,6 +198,11 @@ class Escape:
     Has the filter interface (``filter``, ``__call__``, ``reset``, ``robot``, ``dt``,
     ``margin``, ``name``), so it can stand wherever a filter does.
 
+    It wraps ``inner`` as it is given. Built by name (``make_filter("mpc+escape", ...)``, as the CLI,
+    the ROS node and the Gymnasium shield do), the filter inside also gets
+    :data:`safenav.filters.ESCAPE_PRESETS` (the MPC then tracks the CBF's answer); to wrap an MPC
+    yourself with the same behaviour, build it with ``reference="cbf"``.
+
     Args:
         inner: the safety filter every command goes through.
         config: settings; keyword arguments override its fields.
