@@ -110,3 +110,17 @@ def test_the_mpc_escape_preset_tracks_the_cbf_unless_told_otherwise():
     assert make_filter("mpc+escape", robot, DT, reference="nominal").inner.reference is None
     with pytest.raises(UnknownName, match="mpc\\+escap"):
         filter_settings("mpc+escap")
+
+
+def test_the_mpc_escape_preset_takes_the_m2wr_round_the_clutter_to_its_goal():
+    # goal_m2wr, seed 10: the MPC + escape tracking the nominal brakes in front of each obstacle the go-to-goal
+    # aims through and times out after its escapes (BENCHMARKS.md, "The MPC + escape tracks the CBF"); the
+    # preset, tracking the CBF, steers round them, within the MPC's own constraints, to the goal.
+    from safenav.experiments.runner import reproducible_settings, run_spec
+    from safenav.experiments.specs import EpisodeSpec
+
+    outcome = run_spec(EpisodeSpec("goal_m2wr", "go_to_goal", "mpc+escape", 10,
+                                   filter_options=reproducible_settings("mpc+escape")))
+    metrics = outcome.metrics
+    assert metrics.goal_reached and not metrics.collided and metrics.fallbacks == 0
+    assert metrics.min_clearance > 0.0 and metrics.escapes_started >= 1
