@@ -113,8 +113,10 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
         escape: wrap the filter in the liveness escape (:class:`~safenav.filters.escape.Escape`
             with its default settings): when the filter holds the robot in a deadlock, an escape
             command replaces the agent's action until its way is clear, and passes through the
-            same filter (safety unchanged, only progress). For other settings pass
-            ``Escape(filter, ...)`` as ``filter``.
+            same filter (safety unchanged, only progress). A filter built by name is then built as
+            ``"<name>+escape"``, with :data:`safenav.filters.ESCAPE_PRESETS` under ``filter_settings``
+            (the MPC tracks the CBF's answer). For other settings pass ``Escape(filter, ...)`` as
+            ``filter``.
         intervention_penalty: weight of the intervention penalty (module docstring), >= 0; 0 is off.
         **filter_settings: settings of a filter built by name (fields of its config).
 
