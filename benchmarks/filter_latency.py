@@ -11,7 +11,8 @@ Optionally the same on every scan of the real recordings in ``shared/data/lidar`
 period): a wall just out of the path and a full-speed turning nominal, in an analytic
 simulator of this module (exact ray casting, the exact unicycle in sub-steps, a base
 ramping at its acceleration limits, the lidar's range noise), so that the time measured
-is the filter's. Every preset, both filters (the CBF given the velocity), ``dt`` 0.02,
+is the filter's. Every preset, both filters (the CBF given the velocity) and the MPC tracking the CBF's
+answer (``reference="cbf"``, the MPC inside the deadlock escape: a CBF call in each call), ``dt`` 0.02,
 0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
 the MPC's compute budget (half a period) and longer than the period, the CPU time of the
 calls (which a busy machine's scheduling does not inflate), and the MPC's solving calls
@@ -250,8 +251,10 @@ class DeadlineRecorder:
 def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int) -> list[dict[str, Any]]:
     """Per robot, period and filter: every call's time in issue 18's closed loop (see the module docstring)."""
     rows = []
+    # "mpc (cbf reference)": the MPC inside the escape (safenav.filters.ESCAPE_PRESETS), a CBF call in each call.
     makers: dict[str, Callable[[RobotSpec, float], SafetyFilter]] = {
-        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": lambda robot, dt: MPCSafetyFilter(robot, dt)}
+        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": lambda robot, dt: MPCSafetyFilter(robot, dt),
+        "mpc (cbf reference)": lambda robot, dt: MPCSafetyFilter(robot, dt, reference="cbf")}
     for name in robots:
         robot = preset(name)
         for dt in dts:
