@@ -498,12 +498,14 @@ class SafetyCore:
         return False
 
     def describe(self) -> str:
-        """One line for the log at start: topics, filter (with the escape or not), robot, period, sources, and
-        the narrowest obstacle the filter sees in time (``smallest_obstacle``, assumption A2)."""
+        """One line for the log at start: topics, filter (the MPC's reference; with the escape or not), robot,
+        period, sources, and the narrowest obstacle the filter sees in time (``smallest_obstacle``, assumption A2)."""
         config = self.config
         escape = "with the deadlock escape" if config.escape else "without the deadlock escape (escape: false)"
-        return (f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter} {escape} "
-                f"for {config.robot.name} every {config.control_period:g} s; sources: "
+        reference = getattr(getattr(getattr(self.filter, "inner", self.filter), "config", None), "reference", None)
+        tracks = f" (tracking the {reference} reference)" if reference is not None else ""
+        return (f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter}{tracks} "
+                f"{escape} for {config.robot.name} every {config.control_period:g} s; sources: "
                 + ", ".join(f"{s.name} ({s.topic}, mount {tuple(round(v, 4) for v in s.mount)})"
                             for s in config.sources) + self._sighting())
 

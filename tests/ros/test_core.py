@@ -53,6 +53,9 @@ def test_the_nodes_mpc_tracks_the_cbf_inside_the_escape_and_the_nominal_without_
     assert make_core(filter="mpc")[0].filter.inner.config.reference == "cbf"
     assert make_core(filter="mpc", **{"mpc.reference": "nominal"})[0].filter.inner.config.reference == "nominal"
     assert make_core(filter="mpc", escape=False)[0].filter.config.reference == "nominal"
+    assert "with mpc (tracking the cbf reference) with the deadlock escape" in make_core(filter="mpc")[0].describe()
+    assert "with mpc (tracking the nominal reference) without" in make_core(filter="mpc", escape=False)[0].describe()
+    assert "with cbf with the deadlock escape" in make_core()[0].describe()
 
 
 def test_the_node_builds_the_mpc_that_tracks_the_cbf_from_its_parameters():
