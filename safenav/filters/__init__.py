@@ -7,7 +7,8 @@ name           filter
 ``mpc``        :class:`MPCSafetyFilter`: predictive, braking-safe plan (casadi)
 ``zones``      :class:`ZonesFilter`: stop/slowdown polygons, like ROS 2's collision monitor
 ``none``       no filter (``make_filter`` returns ``None``)
-``*+escape``   the filter wrapped in :class:`~safenav.filters.escape.Escape` (deadlock escape)
+``*+escape``   the filter wrapped in :class:`~safenav.filters.escape.Escape` (deadlock escape),
+               with :data:`ESCAPE_PRESETS` (the MPC then tracks the CBF's answer)
 =============  ==========================================================================
 
 One concept per module: ``base`` (the call template, results, statuses and reasons),
