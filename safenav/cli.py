@@ -69,14 +69,12 @@ def escaped(name: str, escape: bool) -> str:
     Raises:
         InvalidConfig: ``name`` carries the escape and ``escape`` is off (a contradiction).
     """
-    from safenav.filters import ESCAPE_SUFFIX, FILTERS
+    from safenav import filters
 
-    if name.endswith(ESCAPE_SUFFIX):
-        if not escape:
-            raise InvalidConfig(f"--filter {name} asks for the escape and --no-escape turns it off; expected "
-                                f"--filter {name.removesuffix(ESCAPE_SUFFIX)} --no-escape, or no --no-escape")
-        return name
-    return f"{name}{ESCAPE_SUFFIX}" if escape and FILTERS[name] is not None else name
+    if name.endswith(filters.ESCAPE_SUFFIX) and not escape:
+        raise InvalidConfig(f"--filter {name} asks for the escape and --no-escape turns it off; expected "
+                            f"--filter {filters.unescaped(name)} --no-escape, or no --no-escape")
+    return filters.escaped(name) if escape else name
 
 
 def _filter_names(names: Sequence[str]) -> str:

@@ -60,6 +60,7 @@ __all__ = [
     "available_solvers",
     "check_filter",
     "default_margin",
+    "escaped",
     "filter_settings",
     "make_filter",
     "unescaped",
@@ -101,6 +102,17 @@ def filter_settings(name: str, **given: Any) -> dict[str, Any]:
     _checks.choice("filter", name, FILTER_NAMES)
     preset = ESCAPE_PRESETS.get(unescaped(name), {}) if name.endswith(ESCAPE_SUFFIX) else {}
     return {**preset, **given}
+
+
+def escaped(name: str) -> str:
+    """The name of ``name`` wrapped in the deadlock escape: ``"mpc+escape"`` for ``"mpc"``; a name that
+    carries the escape already, and ``"none"`` (no filter to wrap), as they are.
+
+    Raises:
+        UnknownName: ``name`` is not a filter (the message lists them).
+    """
+    _checks.choice("filter", name, FILTER_NAMES)
+    return name if name.endswith(ESCAPE_SUFFIX) or FILTERS[name] is None else f"{name}{ESCAPE_SUFFIX}"
 
 
 def unescaped(name: str) -> str:

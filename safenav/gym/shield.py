@@ -45,7 +45,7 @@ import numpy as np
 from safenav._checks import boolean, number
 from safenav._optional import require
 from safenav.errors import InvalidConfig
-from safenav.filters import ESCAPE_SUFFIX, FILTER_NAMES, FilterResult, SafetyFilter, make_filter
+from safenav.filters import FILTER_NAMES, FilterResult, SafetyFilter, escaped, make_filter
 from safenav.filters.escape import Escape
 from safenav.gym.errors import UnsupportedEnv
 from safenav.gym.protocol import SafetyObservation, describe
@@ -146,8 +146,8 @@ class SafetyShield(gymnasium.ActionWrapper, gymnasium.utils.RecordConstructorArg
                                  "command (0, 0); a shield must be able to stop")
         self.intervention_penalty = number("SafetyShield.intervention_penalty", intervention_penalty, low=0.0)
         with_escape = boolean("SafetyShield.escape", escape)
-        if with_escape and isinstance(filter, str) and filter != "none" and not filter.endswith(ESCAPE_SUFFIX):
-            filter += ESCAPE_SUFFIX     # by name: the filter inside the escape gets its presets (ESCAPE_PRESETS)
+        if with_escape and isinstance(filter, str) and filter in FILTER_NAMES:
+            filter = escaped(filter)     # by name: the filter inside the escape gets its presets (ESCAPE_PRESETS)
         chosen = self._make_filter(env, filter, filter_settings)
         wrap = with_escape and not isinstance(chosen, Escape)
         self.filter: SafetyFilter | Escape = Escape(chosen) if wrap else chosen

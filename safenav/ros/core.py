@@ -44,7 +44,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from safenav.errors import LidarMismatch, SafeNavError
-from safenav.filters import BRAKING_STATUSES, ESCAPE_SUFFIX, FilterResult, SafetyFilter, make_filter
+from safenav.filters import BRAKING_STATUSES, FilterResult, SafetyFilter, escaped, make_filter
 from safenav.filters.escape import Escape
 from safenav.geometry import Pose2D
 from safenav.robot import LidarSpec, RobotSpec
@@ -278,7 +278,7 @@ class SafetyCore:
         """Protect ``robot`` (its lidars are the sources) with a new filter."""
         self.robot = robot
         # By name, so that the filter inside the escape gets the escape's presets (ESCAPE_PRESETS).
-        name = self.config.filter + (ESCAPE_SUFFIX if self.config.escape else "")
+        name = escaped(self.config.filter) if self.config.escape else self.config.filter
         self.filter: SafetyFilter | Escape = make_filter(name, robot, self.config.control_period,
                                                          **self.config.filter_kwargs())
 
@@ -502,7 +502,8 @@ class SafetyCore:
         period, sources, and the narrowest obstacle the filter sees in time (``smallest_obstacle``, assumption A2)."""
         config = self.config
         escape = "with the deadlock escape" if config.escape else "without the deadlock escape (escape: false)"
-        reference = getattr(getattr(getattr(self.filter, "inner", self.filter), "config", None), "reference", None)
+        inner = self.filter.inner if isinstance(self.filter, Escape) else self.filter
+        reference = getattr(inner.config, "reference", None)     # the MPC's, as built
         tracks = f" (tracking the {reference} reference)" if reference is not None else ""
         return (f"filtering {config.cmd_vel_in_topic} -> {config.cmd_vel_out_topic} with {config.filter}{tracks} "
                 f"{escape} for {config.robot.name} every {config.control_period:g} s; sources: "

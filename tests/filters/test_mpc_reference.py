@@ -22,6 +22,7 @@ from safenav.filters import (
     FilterStatus,
     MPCConfig,
     MPCSafetyFilter,
+    escaped,
     filter_settings,
     make_filter,
 )
@@ -103,13 +104,18 @@ def test_the_mpc_escape_preset_tracks_the_cbf_unless_told_otherwise():
     assert filter_settings("mpc") == {} and filter_settings("cbf+escape") == {}
     assert filter_settings("mpc+escape", reference="nominal", horizon_time=2.0) == {
         "reference": "nominal", "horizon_time": 2.0}
-    escaped = make_filter("mpc+escape", robot, DT)
-    assert isinstance(escaped, Escape) and escaped.inner.config.reference == "cbf"
-    assert isinstance(escaped.inner.reference, CBFSafetyFilter)
+    wrapped = make_filter("mpc+escape", robot, DT)
+    assert isinstance(wrapped, Escape) and wrapped.inner.config.reference == "cbf"
+    assert isinstance(wrapped.inner.reference, CBFSafetyFilter)
     assert make_filter("mpc", robot, DT).config.reference == "nominal"
     assert make_filter("mpc+escape", robot, DT, reference="nominal").inner.reference is None
     with pytest.raises(UnknownName, match="mpc\\+escap"):
         filter_settings("mpc+escap")
+    # The one rule the CLI, the ROS node and the shield name the escaped filter by.
+    assert [escaped(name) for name in ("mpc", "cbf+escape", "zones", "none")] == [
+        "mpc+escape", "cbf+escape", "zones+escape", "none"]
+    with pytest.raises(UnknownName, match="'rrt'"):
+        escaped("rrt")
 
 
 def test_the_mpc_escape_preset_takes_the_m2wr_round_the_clutter_to_its_goal():
