@@ -539,7 +539,9 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
 
 def worst_case(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Largest left side of each row of ``G`` ``(k, 4)`` over the box ``lower <= z <= upper``."""
-    return np.maximum(G * lower, G * upper).sum(axis=1)
+    # max(g l, g u) = g (l + u) / 2 + |g| (u - l) / 2: two matrix-vector products (a third of the time of the
+    # elementwise form for a few hundred rows; equal to rounding)
+    return G @ (0.5 * (lower + upper)) + np.abs(G) @ (0.5 * (upper - lower))
 
 
 def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0,
@@ -576,17 +578,21 @@ def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: 
     # the four corners at once: corner c scales the v and omega terms by (1 - b_v, 1 - b_omega) and moves
     # their share of the start velocity to the right side
     b = np.array([[0.0, 0.0], [lag, 0.0], [0.0, lag], [lag, lag]])
-    G = np.repeat(rows.G[None], 4, axis=0)
-    G[:, :, :2] *= (1.0 - b)[:, None, :]
     h = (rows.h[None, :] - (b * velocity) @ rows.G[:, :2].T)
     h[0] = first
-    point = np.broadcast_to(rows.point, h.shape)
-    family = np.broadcast_to(rows.family, h.shape)
+    count = len(rows)
     if box is None:
-        return Rows(G.reshape(-1, 4), h.reshape(-1), point.reshape(-1), family.reshape(-1))
-    has_v, has_omega = rows.G[:, 0] != 0.0, rows.G[:, 1] != 0.0
-    distinct = np.stack((np.ones_like(has_v), has_v, has_omega, has_v & has_omega))
-    return Rows(G[distinct], h[distinct], point[distinct], family[distinct])
+        corner, index = np.repeat(np.arange(4), count), np.tile(np.arange(count), 4)
+    else:
+        distinct = np.empty((4, count), dtype=bool)
+        distinct[0] = True
+        distinct[1] = rows.G[:, 0] != 0.0
+        distinct[2] = rows.G[:, 1] != 0.0
+        distinct[3] = distinct[1] & distinct[2]
+        corner, index = np.nonzero(distinct)       # corner-major, as the corners stacked
+    G = rows.G[index]
+    G[:, :2] *= (1.0 - b)[corner]
+    return Rows(G, h[corner, index], rows.point[index], rows.family[index])
 
 
 def _cone(G: np.ndarray) -> np.ndarray:
