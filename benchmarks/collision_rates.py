@@ -109,6 +109,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mpc-lookahead", metavar="L", type=argument_type(number, low=0.0, high=10.0), default=0.0,
                         help="the MPC rows' look-ahead control disk [m] (MPCConfig.lookahead; 0: none, the default "
                              "filter)")
+    parser.add_argument("--mpc-no-hold", action="store_true",
+                        help="the MPC rows without the hold (MPCConfig.hold_stop=False): a plan that would only "
+                             "reverse in the next period keeps its first linear command instead of standing")
     parser.add_argument("--cbf-smoothing", metavar="S", type=argument_type(number, low=0.0, high=100.0),
                         default=0.0, help="the CBF rows' penalty on the change from the previous command, relative "
                                           "to the nominal's (CBFConfig.smoothing; 0: none, the default filter)")
@@ -159,7 +162,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if truth != "auto":
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "truth": truth}) for spec in specs]
     specs = tuned(specs, mpc_reference=args.mpc_reference, mpc_lookahead=args.mpc_lookahead,
-                  cbf_smoothing=args.cbf_smoothing, body=args.body)
+                  cbf_smoothing=args.cbf_smoothing, body=args.body, mpc_hold=not args.mpc_no_hold)
     pairs = len({(cell.scenario, cell.policy) for cell in cells})
     print(f"{len(specs)} episodes: {pairs} scenario x policy pairs x {len(filters)} filters ({', '.join(filters)}) "
           f"x {seeds} seeds{f' from {args.first_seed}' if args.first_seed else ''}, on {where(args)}; the filters get "
@@ -168,6 +171,7 @@ def _sweep(args: argparse.Namespace) -> int:
           f"{f'; lidar range noise {args.range_noise:g} m' if args.range_noise is not None else ''}"
           f"{f'; the MPC rows track the {args.mpc_reference} reference' if args.mpc_reference else ''}"
           f"{f'; the MPC plans a look-ahead of {args.mpc_lookahead:g} m' if args.mpc_lookahead else ''}"
+          f"{'; the MPC without its hold' if args.mpc_no_hold else ''}"
           f"{f'; the CBF smooths its commands by {args.cbf_smoothing:g}' if args.cbf_smoothing else ''}"
           f"{f'; body model {args.body}' if args.body != 'disk' else ''}"
           f"; clearance measured for the {'footprint (the disk of a round robot)' if truth == 'auto' else truth}")
@@ -204,6 +208,7 @@ def _sweep(args: argparse.Namespace) -> int:
         "range_noise": args.range_noise,
         "mpc_reference": args.mpc_reference,
         "mpc_lookahead": args.mpc_lookahead,
+        "mpc_hold": not args.mpc_no_hold,
         "cbf_smoothing": args.cbf_smoothing,
         "body": args.body,
         "truth": truth,
@@ -225,13 +230,14 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def tuned(specs: Sequence[EpisodeSpec], *, mpc_reference: str | None = None, mpc_lookahead: float = 0.0,
-          cbf_smoothing: float = 0.0, body: str = "disk") -> list[EpisodeSpec]:
-    """The specs with the sweep's opt-in filter settings: the MPC rows' reference and look-ahead, the CBF rows'
-    smoothing, both filters' body model (with or without the escape); the defaults leave every spec as it is."""
+          cbf_smoothing: float = 0.0, body: str = "disk", mpc_hold: bool = True) -> list[EpisodeSpec]:
+    """The specs with the sweep's opt-in filter settings: the MPC rows' reference, look-ahead and hold, the CBF
+    rows' smoothing, both filters' body model (with or without the escape); the defaults leave every spec as it
+    is."""
     tuned_specs = []
     for spec in specs:
         extra = opt_in_settings(spec.filter, mpc_reference=mpc_reference, mpc_lookahead=mpc_lookahead,
-                                cbf_smoothing=cbf_smoothing, body=body)
+                                cbf_smoothing=cbf_smoothing, body=body, mpc_hold=mpc_hold)
         tuned_specs.append(dataclasses.replace(spec, filter_options={**dict(spec.filter_options), **extra})
                            if extra else spec)
     return tuned_specs

@@ -137,16 +137,16 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str
 
 
 def opt_in_settings(filter_name: str, *, mpc_reference: str | None = None, mpc_lookahead: float = 0.0,
-                    cbf_smoothing: float = 0.0, body: str = "disk") -> dict[str, Any]:
+                    cbf_smoothing: float = 0.0, body: str = "disk", mpc_hold: bool = True) -> dict[str, Any]:
     """A benchmark's opt-in settings that apply to ``filter_name`` (with or without the escape): the MPC's
-    reference (``None``: the filter's own, :data:`safenav.filters.ESCAPE_PRESETS` inside the escape) and
-    look-ahead, the CBF's smoothing, both filters' body model; empty for the defaults, and for every other
-    filter."""
+    reference (``None``: the filter's own, :data:`safenav.filters.ESCAPE_PRESETS` inside the escape),
+    look-ahead and hold (``False``: ``MPCConfig.hold_stop`` off), the CBF's smoothing, both filters' body model;
+    empty for the defaults, and for every other filter."""
     base = unescaped(filter_name)
     shape = {} if body == "disk" else {"body": body}
     if base == "mpc":
         return ({} if mpc_reference is None else {"reference": mpc_reference}) | (
-            {"lookahead": mpc_lookahead} if mpc_lookahead else {}) | shape
+            {"lookahead": mpc_lookahead} if mpc_lookahead else {}) | ({} if mpc_hold else {"hold_stop": False}) | shape
     if base == "cbf":
         return ({"smoothing": cbf_smoothing} if cbf_smoothing else {}) | shape
     return {}

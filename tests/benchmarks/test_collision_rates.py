@@ -7,6 +7,9 @@ import pytest
 from PIL import Image
 
 from benchmarks import collision_rates
+from benchmarks.common import opt_in_settings
+from safenav.filters import make_filter
+from safenav.robot import preset
 from safenav.scenarios import scenario
 
 REQUIRED_KEYS = {"scenario", "robot", "policy", "filter", "episodes", "collisions", "collision_rate",
@@ -126,10 +129,20 @@ def test_the_opt_in_settings_reach_their_own_rows_only():
         collision_rates.matrix(["goal_rosbot"], None, ["zones", "cbf", "cbf+escape", "mpc", "mpc+escape"]), range(1))
     assert collision_rates.tuned(specs) == specs          # the defaults: every filter as shipped
     tuned = {spec.filter: dict(spec.filter_options) for spec in collision_rates.tuned(
-        specs, mpc_reference="cbf", mpc_lookahead=0.1, cbf_smoothing=2.0)}
+        specs, mpc_reference="cbf", mpc_lookahead=0.1, cbf_smoothing=2.0, mpc_hold=False)}
     assert tuned["cbf"] == tuned["cbf+escape"] == {"smoothing": 2.0}
-    assert tuned["mpc"] == tuned["mpc+escape"] == {"reference": "cbf", "lookahead": 0.1}
+    assert tuned["mpc"] == tuned["mpc+escape"] == {"reference": "cbf", "lookahead": 0.1, "hold_stop": False}
     assert tuned["zones"] == {}
+
+
+@pytest.mark.sim
+def test_mpc_no_hold_reaches_the_mpc_rows_only_and_is_recorded(tmp_path, capsys):
+    printed, report = _one_episode(tmp_path, capsys, "goal_rosbot", "cbf,mpc", "--mpc-no-hold")
+    assert "the MPC without its hold" in printed
+    assert report["config"]["mpc_hold"] is False
+    built = make_filter("mpc", preset("rosbot"), 0.05, **opt_in_settings("mpc", mpc_hold=False))
+    assert built.config.hold_stop is False
+    assert make_filter("mpc", preset("rosbot"), 0.05).config.hold_stop is True     # the shipped MPC holds
 
 
 @pytest.mark.sim
