@@ -142,6 +142,8 @@ class EpisodeMetrics:
         omega_chatter: mean ``|omega_k - omega_(k-1)| / dt`` of the commands sent [rad/s^2].
         v_reversals: sign changes of the commanded ``v`` per second [1/s] (speeds within
             :data:`REVERSAL_DEADBAND` of zero keep the previous sign).
+        nominal_omega_chatter: ``omega_chatter`` of the nominal's commands [rad/s^2].
+        escape_omega_chatter: ``omega_chatter`` while an escape drove [rad/s^2]; NaN without one.
     """
 
     steps: int
@@ -166,6 +168,8 @@ class EpisodeMetrics:
     escape_time: float = 0.0
     omega_chatter: float = 0.0
     v_reversals: float = 0.0
+    nominal_omega_chatter: float = 0.0
+    escape_omega_chatter: float = math.nan
 
     @property
     def filter_p50_us(self) -> float:
@@ -191,6 +195,10 @@ class Liveness:
         escape_time: time during which an escape drove [s].
         omega_chatter: mean ``|omega_k - omega_(k-1)| / dt`` of the commands [rad/s^2].
         v_reversals: sign changes of the commanded ``v`` per second [1/s].
+        nominal_omega_chatter: the same mean over the nominal's commands (pairs of finite ones) [rad/s^2]:
+            the chatter the nominal brings along the path the robot took.
+        escape_omega_chatter: the same mean over the pairs of consecutive periods in which an escape
+            drove [rad/s^2]; NaN when there are none.
     """
 
     deadlock_time: float
@@ -200,6 +208,8 @@ class Liveness:
     escape_time: float
     omega_chatter: float
     v_reversals: float
+    nominal_omega_chatter: float = 0.0
+    escape_omega_chatter: float = math.nan
 
 
 def stalled(nominal: np.ndarray, commands: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -266,7 +276,9 @@ def liveness(nominal: np.ndarray, commands: np.ndarray, escaping: np.ndarray, dt
       ``deadlock_time`` adds those that last at least ``min_deadlock``.
     * Chatter: the mean ``|Δomega| / dt`` between consecutive commands, and the sign changes of
       ``v`` per second, where ``|v| <=`` :data:`REVERSAL_DEADBAND` keeps the previous sign (so
-      forward, stop, reverse is one change).
+      forward, stop, reverse is one change); the same mean over the nominal's commands (what the
+      nominal itself asks for along the robot's path: a robot that drives through clutter meets
+      more turns than one that stands), and over the pairs of periods in which an escape drove.
 
     Args:
         nominal: ``(T, 2)`` nominal commands, one per period.
@@ -297,14 +309,21 @@ def liveness(nominal: np.ndarray, commands: np.ndarray, escaping: np.ndarray, dt
     lengths = np.array([stop - start for start, stop in _runs(deadlocked)], dtype=float) * dt
     speed = commands[:, 0]
     signs = np.sign(speed[np.abs(speed) > REVERSAL_DEADBAND])
+    turn_change = np.abs(np.diff(commands[:, 1])) / dt
+    nominal_turns = np.asarray(nominal, dtype=float).reshape(-1, 2)[:, 1]
+    nominal_change = np.abs(np.diff(nominal_turns)) / dt
+    nominal_change = nominal_change[np.isfinite(nominal_change)]
+    escaping_pairs = escaping[1:] & escaping[:-1]
     return Liveness(
         deadlock_time=float(lengths[lengths >= min_deadlock - 1e-9].sum()),
         longest_deadlock=float(lengths.max()) if lengths.size else 0.0,
         escapes_started=len(escapes),
         escapes_succeeded=succeeded,
         escape_time=float(np.count_nonzero(escaping)) * dt,
-        omega_chatter=float(np.mean(np.abs(np.diff(commands[:, 1])))) / dt if steps > 1 else 0.0,
+        omega_chatter=float(np.mean(turn_change)) if steps > 1 else 0.0,
         v_reversals=float(np.count_nonzero(np.diff(signs))) / (steps * dt) if steps else 0.0,
+        nominal_omega_chatter=float(np.mean(nominal_change)) if nominal_change.size else 0.0,
+        escape_omega_chatter=float(np.mean(turn_change[escaping_pairs])) if escaping_pairs.any() else math.nan,
     )
 
 

@@ -229,6 +229,18 @@ def test_chatter_is_the_mean_yaw_rate_change_and_the_speed_reversals_per_second(
     assert result.v_reversals == pytest.approx(2 / 0.5)   # +, (within the deadband), -, (0), +
     still = liveness(np.tile(GO, (1, 1)), np.array([(0.3, 1.0)]), np.zeros(1, dtype=bool), 0.1, ROSBOT_LIMITS)
     assert (still.omega_chatter, still.v_reversals) == (0.0, 0.0)
+    assert math.isnan(result.escape_omega_chatter) and math.isnan(still.escape_omega_chatter)   # no escape drove
+
+
+def test_the_nominals_chatter_and_the_chatter_while_escaping_are_told_apart():
+    # The nominal flips its yaw rate (one period without a nominal); the escape drives periods 3-5 smoothly.
+    nominal = np.array([(0.3, 1.0), (0.3, -1.0), (math.nan, math.nan), (0.3, 1.0), (0.3, -1.0), (0.3, 1.0)])
+    commands = np.array([(0.2, 0.4), (0.2, -0.4), (0.0, 0.0), (0.2, 0.5), (0.2, 0.6), (0.2, 0.6)])
+    escaping = np.array([False, False, False, True, True, True])
+    result = liveness(nominal, commands, escaping, 0.1, ROSBOT_LIMITS)
+    assert result.omega_chatter == pytest.approx((0.8 + 0.4 + 0.5 + 0.1 + 0.0) / 5 / 0.1)
+    assert result.nominal_omega_chatter == pytest.approx((2.0 + 2.0 + 2.0) / 3 / 0.1)   # finite pairs only
+    assert result.escape_omega_chatter == pytest.approx((0.1 + 0.0) / 2 / 0.1)          # pairs inside the escape
 
 
 def _wall_ahead_with_goal_behind(robot):

@@ -89,6 +89,9 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
           time an escape drove per episode [s];
         * ``omega_chatter``: mean over the episodes of the mean ``|Δomega| / dt`` [rad/s^2];
           ``v_reversals``: mean over the episodes of the sign changes of ``v`` per second [1/s];
+          ``nominal_omega_chatter``: mean over the episodes of the nominal's own [rad/s^2];
+          ``escape_omega_chatter``: mean over the episodes in which an escape drove of the commands'
+          while it drove [rad/s^2] (``None`` when none did);
         * ``filter_p50_us``, ``filter_p99_us``, ``filter_calls``: every filter call of the cell pooled [us];
         * ``episode_wall_s``: mean wall-clock time of an episode [s] (``None`` without ``wall_times``);
         * ``statuses``: filter statuses summed over the episodes; ``collided_seeds``.
@@ -108,6 +111,7 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
     times = [m.time_to_goal for m in metrics if m.goal_reached]
     filter_times = np.concatenate([m.filter_times for m in metrics])
     deadlocked = [m.longest_deadlock > DEADLOCK_LIMIT for m in metrics]
+    escaping = [m.escape_omega_chatter for m in metrics if math.isfinite(m.escape_omega_chatter)]
     statuses: dict[str, int] = {}
     for m in metrics:
         for status, count in m.statuses.items():
@@ -147,6 +151,8 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         "escape_time": float(np.mean([m.escape_time for m in metrics])),
         "omega_chatter": float(np.mean([m.omega_chatter for m in metrics])),
         "v_reversals": float(np.mean([m.v_reversals for m in metrics])),
+        "nominal_omega_chatter": float(np.mean([m.nominal_omega_chatter for m in metrics])),
+        "escape_omega_chatter": float(np.mean(escaping)) if escaping else None,
         "episode_wall_s": float(np.mean(wall_times)) if wall_times else None,
         "statuses": dict(sorted(statuses.items())),
         "seeds": seeds,
@@ -168,7 +174,8 @@ def cell_records(outcomes: Sequence[EpisodeOutcome]) -> list[dict[str, Any]]:
     return records
 
 
-_POOLED_MEANS = ("intervention", "stuck_time", "deadlock_time", "escape_time", "omega_chatter", "v_reversals")
+_POOLED_MEANS = ("intervention", "stuck_time", "deadlock_time", "escape_time", "omega_chatter", "v_reversals",
+                 "nominal_omega_chatter")
 """Per-episode means of a cell record that pool as means weighted by the cells' episodes."""
 
 _POOLED_SUMS = ("episodes", "collisions", "deadlocked_episodes", "escapes_started", "escapes_succeeded", "fallbacks")
@@ -187,7 +194,8 @@ def pooled_records(records: Sequence[dict[str, Any]],
         One record per group, groups in order of first appearance: ``group`` (the key), ``cells``,
         the sums of ``episodes``, ``collisions``, ``deadlocked_episodes``, ``escapes_started``,
         ``escapes_succeeded`` and ``fallbacks``; the episode-weighted means of ``intervention``,
-        ``stuck_time``, ``deadlock_time``, ``escape_time``, ``omega_chatter`` and ``v_reversals``;
+        ``stuck_time``, ``deadlock_time``, ``escape_time``, ``omega_chatter``, ``v_reversals`` and
+        ``nominal_omega_chatter``;
         ``collision_rate``, ``deadlock_rate`` and their Wilson 95 % intervals; ``goal_reached``
         and ``goal_episodes`` over the cells that have a goal (``None`` when none has);
         ``collided`` and ``deadlocked``: ``(scenario, seed)`` of every such episode.

@@ -71,6 +71,8 @@ _COLUMNS: Mapping[str, Callable[[dict[str, Any]], Any]] = MappingProxyType({
     "deadlocked [s]": lambda r: f"{r['deadlock_time']:.1f}",
     "escapes ok/started": _escapes,
     "chatter [rad/s²]": lambda r: f"{r['omega_chatter']:.2f}",
+    "nominal's chatter": lambda r: f"{r['nominal_omega_chatter']:.2f}",
+    "chatter escaping": lambda r: "–" if r["escape_omega_chatter"] is None else f"{r['escape_omega_chatter']:.2f}",
     "v reversals [1/s]": lambda r: f"{r['v_reversals']:.2f}",
 })
 """How each column of :func:`outcome_table` is formatted from a cell record."""
@@ -118,8 +120,10 @@ SAFETY_COLUMNS = ("scenario", "robot", "policy", "filter", "episodes", "collisio
 """The columns of :func:`outcome_table` about safety and intervention."""
 
 LIVENESS_COLUMNS = ("scenario", "policy", "filter", "goal reached", "stuck [s]", "deadlocks > 5 s", "deadlocked [s]",
-                    "escapes ok/started", "chatter [rad/s²]", "v reversals [1/s]")
-"""The columns of :func:`outcome_table` about progress: goals, stuck and deadlocked time, escapes, chatter."""
+                    "escapes ok/started", "chatter [rad/s²]", "nominal's chatter", "chatter escaping",
+                    "v reversals [1/s]")
+"""The columns of :func:`outcome_table` about progress: goals, stuck and deadlocked time, escapes, chatter (the
+commands', the nominal's along the same path, the commands' while an escape drove)."""
 
 
 def summary_table(pooled: Sequence[dict[str, Any]], group_names: Sequence[str]) -> str:

@@ -16,6 +16,10 @@ from safenav import InvalidConfig, UnknownName
 from safenav.experiments import cell_records, episode_specs, matrix, run_specs
 from safenav.experiments.runner import JobRunner, reproducible_settings, run_jobs
 
+# One worker runs every test here, in this order (pytest-xdist's loadgroup): the first asserts that no cluster
+# answers, and the module's local Ray of another worker would.
+pytestmark = pytest.mark.xdist_group("ray")
+
 TIMING = {"filter_p50_us", "filter_p99_us", "episode_wall_s"}
 NO_RAY = "Ray is not installed: pip install 'safenav[distributed]'"
 

@@ -93,11 +93,11 @@ def test_cell_record_needs_episodes():
 def test_cell_record_counts_deadlocks_escapes_and_chatter_by_hand():
     episodes = [
         metrics(deadlock_time=6.0, longest_deadlock=6.0, escapes=(2, 1), escape_time=4.0, omega_chatter=1.0,
-                v_reversals=0.5),
+                v_reversals=0.5, nominal_omega_chatter=0.5, escape_omega_chatter=0.25),
         metrics(deadlock_time=3.0, longest_deadlock=5.0, omega_chatter=2.0),      # exactly 5 s is not over it
-        metrics(escapes=(1, 1), escape_time=2.0, v_reversals=1.0),
+        metrics(escapes=(1, 1), escape_time=2.0, v_reversals=1.0, nominal_omega_chatter=1.5, escape_omega_chatter=0.75),
         metrics(deadlock_time=12.0, longest_deadlock=9.5, escapes=(3, 0), escape_time=9.0, omega_chatter=3.0,
-                v_reversals=2.5),
+                v_reversals=2.5, nominal_omega_chatter=2.0, escape_omega_chatter=2.0),
     ]
     record = cell_record(Cell("door_rosbot", "go_to_goal", "cbf+escape"), "rosbot", episodes, seeds=[3, 4, 5, 6])
     assert (record["deadlocked_episodes"], record["deadlock_rate"]) == (2, 0.5)
@@ -109,4 +109,9 @@ def test_cell_record_counts_deadlocks_escapes_and_chatter_by_hand():
     assert record["escape_time"] == pytest.approx(15.0 / 4)
     assert record["omega_chatter"] == pytest.approx(6.0 / 4)
     assert record["v_reversals"] == pytest.approx(4.0 / 4)
+    assert record["nominal_omega_chatter"] == pytest.approx(4.0 / 4)
+    assert record["escape_omega_chatter"] == pytest.approx(3.0 / 3)     # over the three episodes that escaped
     json.dumps(record, allow_nan=False)
+    calm = cell_record(Cell("door_rosbot", "go_to_goal", "cbf"), "rosbot", [metrics(), metrics()])
+    assert calm["escape_omega_chatter"] is None                          # no escape: no number, and valid JSON
+    json.dumps(calm, allow_nan=False)
