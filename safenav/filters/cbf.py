@@ -356,6 +356,7 @@ class CBFSafetyFilter(SafetyFilter):
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
+        self._P_slack = np.diag([*np.diag(self._P), cfg.slack_weight])     # with the slack variable last
         self._abs_rows = families.abs_rows()
         self._shapes = {"long": self._shape_of(body, float(cfg.lookahead)),
                         "short": self._shape_of(body, float(cfg.min_lookahead))}
@@ -505,10 +506,10 @@ class CBFSafetyFilter(SafetyFilter):
     @staticmethod
     def _top_rates(lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
         """Largest speed [m/s] and yaw rate [rad/s] magnitudes of the box and the current velocity."""
-        speed = max(abs(lower[0]), abs(upper[0]))
-        turn = max(abs(lower[1]), abs(upper[1]))
+        speed = max(abs(float(lower[0])), abs(float(upper[0])))
+        turn = max(abs(float(lower[1])), abs(float(upper[1])))
         if velocity is not None:
-            speed, turn = max(speed, abs(velocity[0])), max(turn, abs(velocity[1]))
+            speed, turn = max(speed, abs(float(velocity[0]))), max(turn, abs(float(velocity[1])))
         return speed, turn
 
     def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
@@ -572,8 +573,9 @@ class CBFSafetyFilter(SafetyFilter):
     def _target(self, u_nom: np.ndarray) -> np.ndarray:
         """The command the QP's cost pulls towards: ``u_nom`` clipped to the limits, blended with the
         previous command by ``smoothing`` ((1/2)|u - u_nom|^2_W + (s/2)|u - u_previous|^2_W, up to a factor)."""
-        # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled).
-        target = np.clip(u_nom, self.robot.lower, self.robot.upper)
+        # A nominal beyond the velocity limits is first clipped to them (it keeps the QP well scaled; np.clip's
+        # dispatch costs more than the two ufuncs).
+        target = np.minimum(np.maximum(u_nom, self.robot.lower), self.robot.upper)
         smoothing = self.config.smoothing if self._called else 0.0
         return (target + smoothing * self._last_command) / (1.0 + smoothing) if smoothing > 0.0 else target
 
@@ -591,7 +593,7 @@ class CBFSafetyFilter(SafetyFilter):
             stage_h, stage_relaxed = self._stage(rows, problem, slack)
             h = np.concatenate((abs_rows.h, stage_h))
             relaxed = np.concatenate((np.zeros(len(abs_rows), dtype=bool), stage_relaxed))
-            P = np.diag([*np.diag(P), self.config.slack_weight])
+            P = self._P_slack
             q = np.append(q, SLACK_LINEAR_WEIGHT)
             G = np.column_stack((G, -relaxed.astype(float)))
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)

@@ -476,7 +476,9 @@ def braking_rows(geo: Geometry, accel: float, alpha: float, reaction: float, all
     # a pair that no command can make approach still gets its combined row (the arc terms)
     both |= ~(both | v_alone | omega_alone)
     # the three blocks in order (both terms, v alone, omega alone), built at once
-    kind, index = np.nonzero(np.stack((both, v_alone, omega_alone)))
+    kinds = np.empty((3, count), dtype=bool)
+    kinds[0], kinds[1], kinds[2] = both, v_alone, omega_alone
+    kind, index = np.nonzero(kinds)
     G = np.empty((index.size, 4))
     G[:, 0] = np.where(kind == 2, 0.0, k_v[index])
     G[:, 1] = np.where(kind == 1, 0.0, k_omega[index])
