@@ -476,9 +476,7 @@ def braking_rows(geo: Geometry, accel: float, alpha: float, reaction: float, all
     # a pair that no command can make approach still gets its combined row (the arc terms)
     both |= ~(both | v_alone | omega_alone)
     # the three blocks in order (both terms, v alone, omega alone), built at once
-    kinds = np.empty((3, count), dtype=bool)
-    kinds[0], kinds[1], kinds[2] = both, v_alone, omega_alone
-    kind, index = np.nonzero(kinds)
+    kind, index = np.nonzero(np.stack((both, v_alone, omega_alone)))
     G = np.empty((index.size, 4))
     G[:, 0] = np.where(kind == 2, 0.0, k_v[index])
     G[:, 1] = np.where(kind == 1, 0.0, k_omega[index])
@@ -540,9 +538,10 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
 
 
 def worst_case(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Largest left side of each row of ``G`` ``(k, 4)`` over the box ``lower <= z <= upper``."""
+    """Largest left side of each row of ``G`` ``(k, 4)`` over the finite box ``lower <= z <= upper``."""
     # max(g l, g u) = g (l + u) / 2 + |g| (u - l) / 2: two matrix-vector products (a third of the time of the
-    # elementwise form for a few hundred rows; equal to rounding)
+    # elementwise form for a few hundred rows; equal to rounding). Finite bounds only: an infinite one gives
+    # inf - inf here. Both callers pass the velocity box and the auxiliaries' bounds, finite.
     return G @ (0.5 * (lower + upper)) + np.abs(G) @ (0.5 * (upper - lower))
 
 
