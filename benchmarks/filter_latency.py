@@ -43,7 +43,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
 from benchmarks.common import markdown_table, summary, write_json
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter, SafetyFilter, available_solvers
 from safenav.geometry import Pose2D, unicycle_step
-from safenav.robot import PRESET_NAMES, RobotSpec, preset
+from safenav.robot import PRESET_NAMES, LidarSpec, RobotSpec, preset
 from safenav.scan import LaserScan
 from safenav.synthetic import Scene, Segment, synthetic_scan
 from safenav.worlds import random_world
@@ -130,8 +130,11 @@ def real_recordings(robot: RobotSpec, solver: str, per_scan: int, seed: int) -> 
     rows = []
     for name, path in recording_files(folder).items():
         records = load_recording(path)
+        first = records[0].scan
+        # The robot carries the recording's own lidar (the filter checks every scan against it).
+        recorded = robot.replace(lidar=LidarSpec.from_scan(first, mount=None if first.mount_given else Pose2D()))
         cases = [(record.scan, rng.uniform(robot.lower, robot.upper)) for record in records for _ in range(per_scan)]
-        result = time_filter(CBFSafetyFilter(robot, DT, solver=solver), cases)
+        result = time_filter(CBFSafetyFilter(recorded, DT, solver=solver), cases)
         beams = records[0].scan.n_beams
         rows.append({"recording": name, "scans": len(records), "beams": beams, **result})
     return rows

@@ -432,6 +432,7 @@ class CBFSafetyFilter(SafetyFilter):
         points, uncertainty = view.points, view.uncertainty
         distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
         clearance = self._clearance(points, distance)
+        cut_barrier = math.inf     # the smallest barrier of the points the cut leaves out
         if cut and points.shape[0]:
             # Before any trigonometry: a point farther from the base than the reach of every row plus the
             # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
@@ -439,6 +440,12 @@ class CBFSafetyFilter(SafetyFilter):
             reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
             near = distance - uncertainty <= reach + self._extent[1]
             if not near.all():
+                # H is reported over every point: the cut may leave out the one that sets it (only rows of no
+                # command in the box then, whichever H they are written with), never one nearer than the ceiling.
+                unseen = ~near & (distance - uncertainty <= ceiling + self._extent[1])
+                if unseen.any():
+                    cut_barrier = self._shape.body.barrier(points[unseen], self.margin, uncertainty[unseen],
+                                                           self.lookahead)
                 points, uncertainty = points[near], uncertainty[near]
         # Rows leave the travel along the heading free where a point allows it (rows.slide): one period's
         # travel, or with the velocity the braking distance, since every pair then keeps its own rate
@@ -446,38 +453,42 @@ class CBFSafetyFilter(SafetyFilter):
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         travel = speed * period if velocity is None else speed * reaction + speed * speed / (2.0 * robot.a_max)
         tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma, travel=travel)
-        if self._polygon is not None:
-            kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+        geo, per_point, min_barrier = None, np.empty(0), cut_barrier
+        if points.shape[0]:
+            if self._polygon is not None:
+                kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
-            def polygon_limit(smallest: float) -> np.ndarray:
-                return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
+                def polygon_limit(smallest: float) -> np.ndarray:
+                    return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
 
-            geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
-                                                       polygon_limit, **tilt)
-        else:
-            def limit(smallest: float) -> float:
-                return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+                geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
+                                                           polygon_limit, **tilt)
+            else:
+                def limit(smallest: float) -> float:
+                    return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
 
-            geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
-                                               self.margin, kappa, limit, **tilt)
-        min_barrier = float(per_point.min()) if per_point.size else math.inf
-        barrier = families.barrier_rows(geo, self.gamma, self._own_rate(velocity), period, smallest=min_barrier)
-        obstacle = barrier
-        if velocity is not None:
-            # The braking and sweep rows can bind only within the braking reach (their right side, the
-            # stopping speed, exceeds every approach speed the box allows beyond it).
-            pair_distance = 0.0 if self._polygon is None else np.sqrt(points[geo.point, 0] ** 2 +
-                                                                      points[geo.point, 1] ** 2)
-            near = geo.barrier + self._allowance <= self._braking_reach(lower, upper, velocity, period, reaction,
-                                                                        pair_distance)
-            close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
-            braking = families.braking_rows(close, robot.a_max, robot.alpha_max, reaction, self._allowance,
-                                            box=(lower, upper))
-            sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
-                                         self._allowance)
-            obstacle = families.stack(barrier, braking, sweep)
-            obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
-                                             box=(z_lower, z_upper) if cut else None)
+                geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
+                                                   self.margin, kappa, limit, **tilt)
+            min_barrier = min(float(per_point.min()), cut_barrier)
+        obstacle = families.stack()
+        if geo is not None and geo.point.size:   # else no point within the reach of any row (open space)
+            barrier = families.barrier_rows(geo, self.gamma, self._own_rate(velocity), period, smallest=min_barrier)
+            obstacle = barrier
+            if velocity is not None:
+                # The braking and sweep rows can bind only within the braking reach (their right side, the
+                # stopping speed, exceeds every approach speed the box allows beyond it).
+                pair_distance = 0.0 if self._polygon is None else np.sqrt(points[geo.point, 0] ** 2 +
+                                                                          points[geo.point, 1] ** 2)
+                near = geo.barrier + self._allowance <= self._braking_reach(lower, upper, velocity, period, reaction,
+                                                                            pair_distance)
+                close = families.Geometry(*(array[near] for array in geo)) if not near.all() else geo
+                braking = families.braking_rows(close, robot.a_max, robot.alpha_max, reaction, self._allowance,
+                                                box=(lower, upper))
+                sweep = families.sweep_rows(close, velocity, robot.a_max, robot.alpha_max, period, reaction,
+                                             self._allowance)
+                obstacle = families.stack(barrier, braking, sweep)
+                obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
+                                                 box=(z_lower, z_upper) if cut else None)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
@@ -503,23 +514,33 @@ class CBFSafetyFilter(SafetyFilter):
         offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
         return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
 
-    @staticmethod
-    def _top_rates(lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
-        """Largest speed [m/s] and yaw rate [rad/s] magnitudes of the box and the current velocity."""
+    def _binding_rates(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
+        """Speed [m/s] and yaw rate [rad/s] against which a row can bind: the largest magnitudes of the box
+        and the current velocity, over the share of its right side a row keeps at the command's own corner.
+
+        With the velocity every row is also written at the command's corner with ``gamma`` of its right
+        side's magnitude held back (:func:`~safenav.filters.rows.ramp_corners`' headroom); every row's left
+        side is linear in the rates, so that row binds at rates ``r`` exactly when the plain row binds at
+        ``r / (1 - gamma)``. (Until 2026-11-27 the reach ignored the headroom, and the cut dropped rows
+        that bound: answers 2.5e-4 m/s from the full QP's, ``tests/filters/test_cbf.py::
+        test_the_cut_keeps_every_row_the_command_corner_can_bind``.)
+        """
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         turn = max(abs(float(lower[1])), abs(float(upper[1])))
-        if velocity is not None:
-            speed, turn = max(speed, abs(float(velocity[0]))), max(turn, abs(float(velocity[1])))
-        return speed, turn
+        if velocity is None:
+            return speed, turn
+        keep = 1.0 - self.gamma
+        return max(speed, abs(float(velocity[0]))) / keep, max(turn, abs(float(velocity[1]))) / keep
 
     def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
                         distance: float | np.ndarray = 0.0) -> float | np.ndarray:
-        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box.
+        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box, at the
+        rates of :meth:`_binding_rates`.
 
         For the polygon body the arc term grows with the obstacle point's ``distance`` from the
         base origin [m] (scalar or per point); for disks it does not.
         """
-        speed, turn = self._top_rates(lower, upper, velocity)
+        speed, turn = self._binding_rates(lower, upper, velocity)
         kappa = 0.5 * self.robot.omega_max * period
         bound = (speed + self._arm * turn) * (1.0 + kappa)
         return bound + kappa * turn * distance if self._polygon is not None else bound
@@ -535,7 +556,7 @@ class CBFSafetyFilter(SafetyFilter):
         neither can exceed its share beyond ``(sqrt(D_A) + sqrt(D_W))^2``.
         """
         robot = self.robot
-        speed, turn = self._top_rates(lower, upper, velocity)
+        speed, turn = self._binding_rates(lower, upper, velocity)
         kappa = 0.5 * robot.omega_max * period
         arc_lever = self._arm if self._polygon is None else distance
         along = speed * (1.0 + kappa) + kappa * turn * arc_lever
@@ -555,9 +576,18 @@ class CBFSafetyFilter(SafetyFilter):
 
     def _binding_reach(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, min_barrier: float,
                        period: float, reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
-        """Largest barrier value [m] at which any row of any family can bind for a command in the box."""
-        approach = self._approach_bound(lower, upper, velocity, period, distance)
-        reach = max((1.0 - self.gamma) * min_barrier, 0.0) + period * approach / self._own_rate(velocity) + 1e-9
+        """Largest barrier value [m] at which any row of any family can bind for a command in the box.
+
+        A barrier row of a pair outside the margin holds at every command when both of its right
+        sides, ``h - (1 - gamma) H`` and (own rate ``g < 1``) ``g h``, exceed the period's largest
+        approach ``dt S``; pairs inside the margin always may bind.
+        """
+        travel = period * self._approach_bound(lower, upper, velocity, period, distance)
+        reach = (1.0 - self.gamma) * min_barrier + travel
+        own = self._own_rate(velocity)
+        if own < 1.0:
+            reach = np.maximum(reach, travel / own)
+        reach = np.maximum(reach, 0.0) + 1e-9
         if velocity is not None:
             reach = np.maximum(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
         return reach

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from safenav import InvalidConfig, LidarSpec, Pose2D, UnknownName, preset, unicycle_step
 from safenav.filters import CBFSafetyFilter, FilterStatus, available_solvers
 from safenav.filters.qp import QPOutcome
+from safenav.filters.rows import worst_case
 from safenav.robot import PRESET_NAMES
 from safenav.synthetic import Circle, Scene, Segment, box, synthetic_scan, wall
 
@@ -186,6 +187,84 @@ def test_reduction_gives_the_answer_of_the_full_qp(case):
         return
     assert np.max(np.abs(reference.x[:2] - result.u)) <= 1e-6
     assert result.n_constraints <= full.G.shape[0] - 4
+
+
+def _where_barrier(filt: CBFSafetyFilter, origin, direction, barrier: float) -> np.ndarray:
+    """The point [m] along ``origin + t direction`` (base frame) whose barrier is ``barrier`` [m] (bisection)."""
+    origin, direction = np.asarray(origin, dtype=float), np.asarray(direction, dtype=float)
+    low, high = 0.0, 5.0
+    for _ in range(50):
+        middle = 0.5 * (low + high)
+        value = filt.body.barrier((origin + middle * direction)[None], filt.margin, 0.0, filt.lookahead)
+        low, high = (middle, high) if value < barrier else (low, middle)
+    return origin + high * direction
+
+
+def _uncovered_binding_rows(filt: CBFSafetyFilter, scan, velocity) -> int:
+    """How many rows of the full problem (no cut) some command in the box violates that the reduced rows
+    do not contain (the same left side, a right side no larger)."""
+    robot = filt.robot
+    lower, upper = robot.velocity_bounds(velocity, DT if velocity is not None else None)
+    t_low = np.abs(velocity) if velocity is not None else np.zeros(2)
+    t_high = np.maximum(np.maximum(np.abs(lower), np.abs(upper)), t_low)
+    z_lower, z_upper = np.concatenate((lower, t_low)), np.concatenate((upper, t_high))
+    full, kept = filt.rows(scan, velocity, reduce=False), filt.rows(scan, velocity)
+    binding = full.take(worst_case(full.G, z_lower, z_upper) > full.h + 1e-9)
+    order = np.argsort(kept.G[:, 0])
+    first = kept.G[order, 0]
+    starts = np.searchsorted(first, binding.G[:, 0] - 1e-9, side="left")
+    stops = np.searchsorted(first, binding.G[:, 0] + 1e-9, side="right")
+    uncovered = 0
+    for row, start, stop in zip(range(len(binding)), starts, stops, strict=True):
+        same = order[start:stop]
+        same = same[np.abs(kept.G[same] - binding.G[row]).max(axis=1) <= 1e-9]
+        uncovered += not np.any(kept.h[same] <= binding.h[row] + 1e-9)
+    return uncovered
+
+
+@settings(max_examples=300)
+@given(cases())
+def test_the_cut_keeps_every_row_a_command_in_the_box_can_violate(case):
+    """docs/safety.md's exact reduction, row by row: a point is left out only when no row built from it can
+    bind for any command in the box."""
+    robot, scan, _, velocity = case
+    assert _uncovered_binding_rows(CBFSafetyFilter(robot, DT), scan, velocity) == 0
+
+
+def _where_barrier(filt: CBFSafetyFilter, origin, direction, barrier: float) -> np.ndarray:
+    """The point [m] along ``origin + t direction`` (base frame) whose barrier is ``barrier`` [m] (bisection)."""
+    origin, direction = np.asarray(origin, dtype=float), np.asarray(direction, dtype=float)
+    low, high = 0.0, 5.0
+    for _ in range(50):
+        middle = 0.5 * (low + high)
+        value = filt.body.barrier((origin + middle * direction)[None], filt.margin, 0.0, filt.lookahead)
+        low, high = (middle, high) if value < barrier else (low, middle)
+    return origin + high * direction
+
+
+@pytest.mark.parametrize("body", ["disk", "polygon"])
+def test_the_cut_keeps_the_rows_the_command_corner_can_bind(body):
+    """A pillar just inside the margin beside a fast robot (``H`` < 0) and a wall ahead whose barrier lies between
+    what the barrier rows reach without the command corner's headroom (``gamma`` of each right side, see
+    ``rows.ramp_corners``) and with it. The cut kept only what the rows reach without it until 2026-11-27 and
+    dropped the wall (answers up to 2.5e-4 m/s from the full QP's)."""
+    rng = np.random.default_rng(2)
+    for k in range(40):
+        robot = preset(("rosbot", "puzzlebot")[k % 2])   # lidars that see beside the base
+        filt = CBFSafetyFilter(robot, DT, body=body)
+        velocity = np.array([rng.uniform(0.6, 1.0) * robot.v_max, rng.uniform(-0.1, 0.1) * robot.omega_max])
+        side = rng.choice([-1.0, 1.0])
+        beside = _where_barrier(filt, (rng.uniform(-0.1, 0.0), 0.0), (0.0, side), rng.uniform(-0.03, 0.0))
+        pillar = Circle((beside[0], beside[1] + 0.03 * side), 0.03)
+        # The largest approach in a period (box speed and turn, their arc terms) and the two reaches.
+        speed = min(robot.v_max, velocity[0] + robot.a_max * DT)
+        turn = abs(velocity[1]) + robot.alpha_max * DT
+        reach = DT * (speed + filt.lookahead * turn) * (1.0 + 0.5 * robot.omega_max * DT) / filt.gamma
+        barrier = reach * rng.uniform(1.0, 1.01)   # the rows' own arc terms stay below the bound's
+        ahead = _where_barrier(filt, (0.0, 0.0), (1.0, 0.0), barrier)[0]
+        scan = synthetic_scan(robot, Scene.of(pillar, Segment((ahead, -3.0), (ahead, 3.0))), Pose2D())
+        assert _uncovered_binding_rows(CBFSafetyFilter(robot, DT, body=body), scan, velocity) == 0, (
+            robot.name, velocity, barrier)
 
 
 @settings(max_examples=600)

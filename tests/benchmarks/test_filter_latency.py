@@ -1,0 +1,32 @@
+"""benchmarks/filter_latency.py: its paths run and report what they time (small sizes; numbers in BENCHMARKS.md)."""
+
+import json
+
+from benchmarks import filter_latency
+from safenav import preset
+
+
+def test_real_recordings_time_the_filter_on_every_scan_of_every_recording(lidar_data, monkeypatch):
+    """The recordings' lidars are not the preset's: each is timed on a robot carrying the recording's own lidar
+    (until 2026-11-27 the strict scan check rejected the first scan and ``--real`` raised)."""
+    from safenav.datasets import load_recording, recording_files
+
+    monkeypatch.setenv("SAFENAV_LIDAR_DATA", str(lidar_data))
+    rows = filter_latency.real_recordings(preset("rosbot"), "daqp", per_scan=1, seed=0)
+    files = recording_files(lidar_data)
+    assert [row["recording"] for row in rows] == list(files)
+    for row in rows:
+        scans = len(load_recording(files[row["recording"]]))
+        assert row["scans"] == scans and row["end_to_end"]["n"] == scans
+        assert row["end_to_end"]["median_us"] > 0.0
+        assert sum(row["statuses"].values()) == scans and row["statuses"].get("fallback", 0) == 0
+
+
+def test_the_default_run_writes_its_tables_as_json(tmp_path, capsys):
+    path = tmp_path / "latency.json"
+    assert filter_latency.main(["--scenes", "3", "--per-scene", "2", "--solvers", "daqp", "--baseline-calls", "4",
+                                "--json", str(path)]) == 0
+    results = json.loads(path.read_text())
+    assert results["cbf"]["daqp"]["end_to_end"]["median_us"] > 0.0
+    assert results["baseline"]["end_to_end"]["median_us"] > 0.0
+    assert "speed-up vs baseline" in capsys.readouterr().out
