@@ -18,10 +18,15 @@ the MPC's compute budget (half a period) and longer than the period, the CPU tim
 calls (which a busy machine's scheduling does not inflate), and the MPC's solving calls
 apart; the straightforward baseline timed on the CBF's own scans of the same run.
 
+``--reach`` times the CBF (given the velocity) by what lies within its reach, every preset, one
+fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ahead, a wall
+0.15 m beside the body; the nominal and the velocity are 30 % of the top speed, straight ahead.
+
 Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``)::
 
     python -m benchmarks.filter_latency --deadline --json latency.json
     python benchmarks/filter_latency.py --deadline --only-deadline
+    python -m benchmarks.filter_latency --reach --only-reach
 """
 
 from __future__ import annotations
@@ -184,6 +189,41 @@ def closed_loop(filters: Sequence[str], seeds: int, duration: float = 20.0) -> l
     return rows
 
 
+def reach_scenes(robot: RobotSpec) -> dict[str, Scene]:
+    """The scenes of ``--reach``, in the robot's base frame at the origin."""
+    r = robot.radius
+    return {
+        "nothing in range": Scene(),
+        "4 m room": Scene.of(Segment((2.0, -2.0), (2.0, 2.0)), Segment((2.0, 2.0), (-2.0, 2.0)),
+                             Segment((-2.0, 2.0), (-2.0, -2.0)), Segment((-2.0, -2.0), (2.0, -2.0))),
+        "wall 2 m ahead": Scene.of(Segment((r + 2.0, -3.0), (r + 2.0, 3.0))),
+        "wall 0.6 m ahead": Scene.of(Segment((r + 0.6, -3.0), (r + 0.6, 3.0))),
+        "wall 0.15 m beside": Scene.of(Segment((-1.0, r + 0.15), (3.0, r + 0.15))),
+    }
+
+
+def reach_latency(robots: Sequence[str], calls: int) -> list[dict[str, Any]]:
+    """The CBF's time per call (velocity given) on one fixed scan of each scene of :func:`reach_scenes`."""
+    rows = []
+    for name in robots:
+        robot = preset(name)
+        command = np.array([0.3 * robot.v_max, 0.0])
+        for scene_name, scene in reach_scenes(robot).items():
+            scan = synthetic_scan(robot, scene, Pose2D(), noise_std=0.0)
+            safety = CBFSafetyFilter(robot, DT)
+            samples, statuses = [], {}
+            for call in range(calls + 20):
+                start = time.perf_counter()
+                result = safety.filter(command, scan, velocity=command)
+                elapsed = time.perf_counter() - start
+                if call >= 20:   # the first calls fill the memory and the caches
+                    samples.append(elapsed)
+                    statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+            rows.append({"robot": name, "scene": scene_name, "points": len(scan.points()),
+                         "end_to_end": summary(samples), "statuses": statuses, "modified": bool(result.modified)})
+    return rows
+
+
 DEADLINE_PERIODS = (0.02, 0.05, 0.1)
 """Control periods of the closed-loop deadline scenario [s]."""
 WALL_GAPS = (0.06, 0.12, 0.2, 0.35)
@@ -328,11 +368,27 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                         help="presets of the deadline scenario (default: all)")
     parser.add_argument("--deadline-dts", default=",".join(str(dt) for dt in DEADLINE_PERIODS),
                         help="control periods of the deadline scenario [s] (default: 0.02,0.05,0.1)")
+    parser.add_argument("--reach", action="store_true",
+                        help="also time the CBF by what lies within its reach (open space to a wall beside)")
+    parser.add_argument("--only-reach", action="store_true", help="run the --reach table alone")
+    parser.add_argument("--reach-calls", type=int, default=2000, help="calls per scene of --reach (default: 2000)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     args = parser.parse_args(argv)
 
     results: dict[str, Any] = {"config": vars(args)}
+    if args.reach or args.only_reach:
+        results["reach"] = reach_latency(PRESET_NAMES, args.reach_calls)
+        print("the CBF by what lies within its reach (one fixed scan each, velocity given):")
+        print(markdown_table(["robot", "scene", "obstacle points", "median µs", "p99 µs", "command changed",
+                              "statuses"],
+                             [[row["robot"], row["scene"], row["points"], row["end_to_end"]["median_us"],
+                               row["end_to_end"]["p99_us"], "yes" if row["modified"] else "no", row["statuses"]]
+                              for row in results["reach"]]))
+        print()
+        if args.only_reach:
+            write_json(args.json, results)
+            return 0
     if args.deadline or args.only_deadline:
         print("issue 18's closed loop (wall beside the path, full-speed turning nominal, ramping base):", flush=True)
         results["deadline"] = deadline_scenario(args.deadline_robots.split(","),

@@ -440,11 +440,11 @@ class CBFSafetyFilter(SafetyFilter):
             reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
             near = distance - uncertainty <= reach + self._extent[1]
             if not near.all():
-                # H is reported over every point: the cut may leave out the one that sets it (only rows of no
-                # command in the box then, whichever H they are written with), never one nearer than the ceiling.
-                unseen = ~near & (distance - uncertainty <= ceiling + self._extent[1])
-                if unseen.any():
-                    cut_barrier = self._shape.body.barrier(points[unseen], self.margin, uncertainty[unseen],
+                # H is reported over every point. The point that sets it is within the ceiling plus the extent;
+                # when the cut leaves it out, no kept row can bind either, whichever H it is written with.
+                left_out = ~near & (distance - uncertainty <= ceiling + self._extent[1])
+                if left_out.any():
+                    cut_barrier = self._shape.body.barrier(points[left_out], self.margin, uncertainty[left_out],
                                                            self.lookahead)
                 points, uncertainty = points[near], uncertainty[near]
         # Rows leave the travel along the heading free where a point allows it (rows.slide): one period's
@@ -523,7 +523,7 @@ class CBFSafetyFilter(SafetyFilter):
         side is linear in the rates, so that row binds at rates ``r`` exactly when the plain row binds at
         ``r / (1 - gamma)``. (Until 2026-11-27 the reach ignored the headroom, and the cut dropped rows
         that bound: answers 2.5e-4 m/s from the full QP's, ``tests/filters/test_cbf.py::
-        test_the_cut_keeps_every_row_the_command_corner_can_bind``.)
+        test_the_cut_keeps_the_rows_the_command_corner_can_bind``.)
         """
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         turn = max(abs(float(lower[1])), abs(float(upper[1])))

@@ -4,6 +4,7 @@ import json
 
 from benchmarks import filter_latency
 from safenav import preset
+from safenav.robot import PRESET_NAMES
 
 
 def test_real_recordings_time_the_filter_on_every_scan_of_every_recording(lidar_data, monkeypatch):
@@ -30,3 +31,16 @@ def test_the_default_run_writes_its_tables_as_json(tmp_path, capsys):
     assert results["cbf"]["daqp"]["end_to_end"]["median_us"] > 0.0
     assert results["baseline"]["end_to_end"]["median_us"] > 0.0
     assert "speed-up vs baseline" in capsys.readouterr().out
+
+
+def test_the_reach_table_times_every_preset_in_every_scene(tmp_path):
+    path = tmp_path / "reach.json"
+    assert filter_latency.main(["--only-reach", "--reach-calls", "3", "--json", str(path)]) == 0
+    rows = json.loads(path.read_text())["reach"]
+    scenes = list(filter_latency.reach_scenes(preset("rosbot")))
+    assert [(row["robot"], row["scene"]) for row in rows] == [(name, scene) for name in PRESET_NAMES
+                                                              for scene in scenes]
+    for row in rows:
+        assert row["end_to_end"]["n"] == 3 and sum(row["statuses"].values()) == 3
+        assert (row["points"] == 0) == (row["scene"] == "nothing in range")
+        assert not row["modified"] or row["scene"].startswith("wall")
