@@ -52,7 +52,8 @@ class Pose2D(NamedTuple):
 def counter_clockwise(polygon: np.ndarray) -> np.ndarray:
     """A copy of the polygon ``(V, 2)`` [m] with its vertices in counter-clockwise order."""
     polygon = np.asarray(polygon, dtype=float).reshape(-1, 2)
-    area2 = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    following = np.concatenate((polygon[1:], polygon[:1]))     # each vertex's successor (np.roll, without its cost)
+    area2 = np.sum(polygon[:, 0] * following[:, 1] - following[:, 0] * polygon[:, 1])
     return polygon[::-1].copy() if area2 < 0 else polygon.copy()
 
 

@@ -16,7 +16,7 @@ import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -245,40 +245,91 @@ def box_corners(boxes: np.ndarray) -> np.ndarray:
 
 def _segment_distances(points: np.ndarray, start: np.ndarray, edge: np.ndarray) -> np.ndarray:
     """Distance [m] from ``points`` to the segments ``start`` .. ``start + edge`` (broadcast over the leading axes)."""
-    relative = points - start
-    t = np.clip(np.sum(relative * edge, axis=-1) / np.sum(edge * edge, axis=-1), 0.0, 1.0)
-    return np.hypot(*np.moveaxis(relative - t[..., None] * edge, -1, 0))
+    x, y = points[..., 0] - start[..., 0], points[..., 1] - start[..., 1]
+    ex, ey = edge[..., 0], edge[..., 1]
+    t = np.minimum(np.maximum((x * ex + y * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+    return np.hypot(x - t * ex, y - t * ey)
 
 
-def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray, circles: np.ndarray) -> np.ndarray:
+class BoxSides(NamedTuple):
+    """The static part of :func:`polygon_gaps` for a set of boxes, computed once per world."""
+
+    boxes: np.ndarray
+    """``(M, 6)`` rows of :func:`box_array`."""
+    corners: np.ndarray
+    """``(M, 4, 2)`` their corners, counter-clockwise [m]."""
+    edges: np.ndarray
+    """``(M, 4, 2)`` corner ``i + 1`` minus corner ``i`` [m]."""
+    normals: np.ndarray
+    """``(M, 4, 2)`` the outward unit normals of those edges."""
+    radii: np.ndarray
+    """``(M,)`` the radii of their circumscribed circles [m]."""
+
+    def take(self, index: np.ndarray) -> BoxSides:
+        return BoxSides(*(array[index] for array in self))
+
+
+def box_sides(boxes: np.ndarray) -> BoxSides:
+    """The corners, edges and outward normals of the boxes of :func:`box_array`."""
+    corners = box_corners(boxes)
+    edges = _next_vertex(corners) - corners
+    normals = np.stack((edges[..., 1], -edges[..., 0]), axis=-1) / np.hypot(edges[..., 0], edges[..., 1])[..., None]
+    return BoxSides(boxes, corners, edges, normals, np.hypot(boxes[:, 2], boxes[:, 3]))
+
+
+def _next_vertex(polygons: np.ndarray) -> np.ndarray:
+    """``polygons`` ``(..., V, 2)`` with every vertex replaced by the next one (``np.roll(-1)`` along ``V``)."""
+    return np.concatenate((polygons[..., 1:, :], polygons[..., :1, :]), axis=-2)
+
+
+def _candidates(polygons: np.ndarray, sides: BoxSides, circles: np.ndarray) -> tuple[BoxSides, np.ndarray]:
+    """The obstacles that can be the nearest to one of ``polygons`` (the others cannot change the minimum).
+
+    Seen from circumscribed circles, an obstacle is at least its centre distance less both radii away (less
+    than its penetration depth when they overlap), and the nearest is at most the smallest centre distance
+    away (both centres lie inside their shapes).
+    """
+    centre = polygons.mean(axis=1)                                          # (K, 2)
+    radius = np.sqrt(((polygons - centre[:, None]) ** 2).sum(axis=2)).max(axis=1)
+    box_centres = np.hypot(centre[:, None, 0] - sides.boxes[None, :, 0], centre[:, None, 1] - sides.boxes[None, :, 1])
+    circle_centres = np.hypot(centre[:, None, 0] - circles[None, :, 0], centre[:, None, 1] - circles[None, :, 1])
+    ceiling = np.minimum(box_centres.min(axis=1, initial=math.inf), circle_centres.min(axis=1, initial=math.inf))
+    near_box = np.any(box_centres - sides.radii[None] - radius[:, None] <= ceiling[:, None], axis=0)
+    near_circle = np.any(circle_centres - circles[None, :, 2] - radius[:, None] <= ceiling[:, None], axis=0)
+    if not near_box.all():
+        sides = sides.take(near_box)
+    return sides, circles if near_circle.all() else circles[near_circle]
+
+
+def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray | BoxSides, circles: np.ndarray) -> np.ndarray:
     """Exact signed distance ``(K,)`` [m] from each convex polygon to the nearest box or circle.
 
     Args:
         polygons: ``(K, V, 2)`` convex polygons, counter-clockwise [m].
-        boxes: ``(M, 6)`` rows of :func:`box_array`.
+        boxes: ``(M, 6)`` rows of :func:`box_array`, or their :func:`box_sides` (a world computes them once).
         circles: ``(C, 3)`` rows ``(cx, cy, radius)`` [m].
 
     Returns:
         Per polygon, the distance to the nearest obstacle when apart, minus the penetration depth (the
         shortest translation that separates them) when they overlap; ``inf`` without obstacles.
     """
+    sides = boxes if isinstance(boxes, BoxSides) else box_sides(boxes)
+    if sides.boxes.shape[0] + circles.shape[0] > 1:
+        sides, circles = _candidates(polygons, sides, circles)
     start = polygons
-    edge = np.roll(polygons, -1, axis=1) - polygons                        # (K, V, 2)
+    edge = _next_vertex(polygons) - polygons                                # (K, V, 2)
     normal = np.stack((edge[..., 1], -edge[..., 0]), axis=-1) / np.hypot(edge[..., 0], edge[..., 1])[..., None]
     best = np.full(polygons.shape[0], math.inf)
-    if boxes.size:
-        corners = box_corners(boxes)                                        # (M, 4, 2)
+    if sides.boxes.size:
+        corners = sides.corners                                             # (M, 4, 2)
         # Separating axes: the polygon's edge normals (the box's corners beyond each edge) and the box's.
         beyond = np.einsum("kvmcd,kvd->kvmc", corners[None, None] - start[:, :, None, None], normal)
         separation = beyond.min(axis=3).max(axis=1)                         # (K, M)
-        box_edge = np.roll(corners, -1, axis=1) - corners
-        box_normal = np.stack((box_edge[..., 1], -box_edge[..., 0]), axis=-1) / np.hypot(
-            box_edge[..., 0], box_edge[..., 1])[..., None]                 # (M, 4, 2)
-        outside = np.einsum("kvmed,med->kvme", polygons[:, :, None, None] - corners[None, None], box_normal)
+        outside = np.einsum("kvmed,med->kvme", polygons[:, :, None, None] - corners[None, None], sides.normals)
         separation = np.maximum(separation, outside.min(axis=1).max(axis=2))
         # Apart, the nearest pair is a corner of one and a side of the other.
-        corner_to_box = box_distance(polygons.reshape(-1, 2), boxes).reshape(polygons.shape[0], -1,
-                                                                             boxes.shape[0]).min(axis=1)
+        corner_to_box = box_distance(polygons.reshape(-1, 2), sides.boxes).reshape(polygons.shape[0], -1,
+                                                                                   sides.boxes.shape[0]).min(axis=1)
         box_to_polygon = _segment_distances(corners[None, :, :, None], start[:, None, None], edge[:, None, None])
         apart = np.minimum(corner_to_box, box_to_polygon.min(axis=(2, 3)))
         best = np.minimum(best, np.where(separation > 0.0, apart, separation).min(axis=1))

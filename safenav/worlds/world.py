@@ -24,11 +24,13 @@ from safenav.geometry import Pose2D
 from safenav.synthetic import Circle, Scene, Segment
 from safenav.worlds.shapes import (
     Box,
+    BoxSides,
     Cylinder,
     Obstacle,
     Wall,
     box_array,
     box_distance,
+    box_sides,
     placed_polygons,
     polygon_gaps,
     primitive,
@@ -101,6 +103,10 @@ class World:
         return box_array(primitive(o) for o in self.obstacles if not isinstance(o, Cylinder))
 
     @functools.cached_property
+    def _box_sides(self) -> BoxSides:
+        return box_sides(self._boxes)
+
+    @functools.cached_property
     def _circles(self) -> np.ndarray:
         rows = [(*o.center, o.radius) for o in self.obstacles if isinstance(o, Cylinder)]
         return np.array(rows, dtype=float).reshape(-1, 3)
@@ -144,7 +150,7 @@ class World:
             ``(K,)`` distances from the polygon to the nearest obstacle [m]: negative when it overlaps one
             (minus the penetration depth), ``inf`` in a world without obstacles.
         """
-        return polygon_gaps(placed_polygons(poses, footprint), self._boxes, self._circles)
+        return polygon_gaps(placed_polygons(poses, footprint), self._box_sides, self._circles)
 
     def scene(self) -> Scene:
         """The obstacle outlines as a :class:`~safenav.synthetic.Scene` for exact analytic ray casts.

@@ -75,6 +75,33 @@ def test_footprint_clearance_is_exact_apart_and_minus_the_penetration_depth_in_o
     assert world.footprint_clearance(np.array([pose]), M2WR_BOX)[0] == pytest.approx(expected, abs=1e-12)
 
 
+def test_footprint_clearance_of_a_period_is_the_minimum_over_every_obstacle_alone():
+    """The simulator asks for a period's five poses at once, and only the obstacles that can be the nearest are
+    evaluated (circumscribed circles): the values are those of every obstacle evaluated alone, bit for bit,
+    apart and overlapping."""
+    from safenav.worlds.shapes import box_sides, placed_polygons, polygon_gaps
+
+    rng = np.random.default_rng(5)
+    for name in ("m2wr", "rosbot"):
+        robot = preset(name)
+        footprint = np.asarray(robot.footprint)
+        for seed in range(2):
+            world = random_world(seed=seed, robot=robot)
+            boxes, circles = world._boxes, world._circles
+            overlapping = 0
+            for _ in range(150):
+                start = np.array([*rng.uniform(-5.0, 5.0, 2), rng.uniform(-np.pi, np.pi)])
+                poses = start + np.cumsum(rng.uniform(-0.02, 0.02, (5, 3)), axis=0)
+                polygons = placed_polygons(poses, footprint)
+                alone = [polygon_gaps(polygons, box_sides(boxes[k:k + 1]), np.empty((0, 3))) for k in range(len(boxes))]
+                alone += [polygon_gaps(polygons, box_sides(np.empty((0, 6))), circles[k:k + 1])
+                          for k in range(len(circles))]
+                expected = np.min(alone, axis=0)
+                np.testing.assert_array_equal(world.footprint_clearance(poses, footprint), expected)
+                overlapping += int(np.any(expected < 0.0))
+            assert overlapping > 5
+
+
 def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_disks():
     """An independent implementation (the falsifier's, on the world's outlines as segments and circles) gives
     the same distance wherever both see the footprint apart; the footprint, inside its disk, is never nearer."""
