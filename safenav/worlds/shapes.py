@@ -258,23 +258,22 @@ class BoxSides(NamedTuple):
     """``(M, 6)`` rows of :func:`box_array`."""
     corners: np.ndarray
     """``(M, 4, 2)`` their corners, counter-clockwise [m]."""
-    edges: np.ndarray
-    """``(M, 4, 2)`` corner ``i + 1`` minus corner ``i`` [m]."""
     normals: np.ndarray
-    """``(M, 4, 2)`` the outward unit normals of those edges."""
+    """``(M, 4, 2)`` the outward unit normals of their sides (corner ``i`` to ``i + 1``)."""
     radii: np.ndarray
     """``(M,)`` the radii of their circumscribed circles [m]."""
 
     def take(self, index: np.ndarray) -> BoxSides:
+        """The boxes picked by ``index`` (a mask or indices)."""
         return BoxSides(*(array[index] for array in self))
 
 
 def box_sides(boxes: np.ndarray) -> BoxSides:
-    """The corners, edges and outward normals of the boxes of :func:`box_array`."""
+    """The corners, side normals and circumscribed radii of the boxes of :func:`box_array`."""
     corners = box_corners(boxes)
     edges = _next_vertex(corners) - corners
     normals = np.stack((edges[..., 1], -edges[..., 0]), axis=-1) / np.hypot(edges[..., 0], edges[..., 1])[..., None]
-    return BoxSides(boxes, corners, edges, normals, np.hypot(boxes[:, 2], boxes[:, 3]))
+    return BoxSides(boxes, corners, normals, np.hypot(boxes[:, 2], boxes[:, 3]))
 
 
 def _next_vertex(polygons: np.ndarray) -> np.ndarray:
