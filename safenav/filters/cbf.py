@@ -488,7 +488,7 @@ class CBFSafetyFilter(SafetyFilter):
                                              self._allowance)
                 obstacle = families.stack(barrier, braking, sweep)
                 obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
-                                                 box=(z_lower, z_upper) if cut else None)
+                                                 box=(z_lower, z_upper), reduce=cut)
         frontier = view.frontier
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
@@ -514,33 +514,25 @@ class CBFSafetyFilter(SafetyFilter):
         offset = float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
         return body.clearance(points[distance <= float(distance.min()) + 2.0 * offset + 1e-9])
 
-    def _binding_rates(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
-        """Speed [m/s] and yaw rate [rad/s] against which a row can bind: the largest magnitudes of the box
-        and the current velocity, over the share of its right side a row keeps at the command's own corner.
-
-        With the velocity every row is also written at the command's corner with ``gamma`` of its right
-        side's magnitude held back (:func:`~safenav.filters.rows.ramp_corners`' headroom); every row's left
-        side is linear in the rates, so that row binds at rates ``r`` exactly when the plain row binds at
-        ``r / (1 - gamma)``. (Until 2026-11-27 the reach ignored the headroom, and the cut dropped rows
-        that bound: answers 2.5e-4 m/s from the full QP's, ``tests/filters/test_cbf.py::
-        test_the_cut_keeps_the_rows_the_command_corner_can_bind``.)
-        """
+    @staticmethod
+    def _top_rates(lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None) -> tuple[float, float]:
+        """Largest speed [m/s] and yaw rate [rad/s] magnitudes of the box and the current velocity."""
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         turn = max(abs(float(lower[1])), abs(float(upper[1])))
-        if velocity is None:
-            return speed, turn
-        keep = 1.0 - self.gamma
-        return max(speed, abs(float(velocity[0]))) / keep, max(turn, abs(float(velocity[1]))) / keep
+        if velocity is not None:
+            speed, turn = max(speed, abs(float(velocity[0]))), max(turn, abs(float(velocity[1])))
+        return speed, turn
 
     def _approach_bound(self, lower: np.ndarray, upper: np.ndarray, velocity: np.ndarray | None, period: float,
                         distance: float | np.ndarray = 0.0) -> float | np.ndarray:
-        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box, at the
-        rates of :meth:`_binding_rates`.
+        """Largest left side of any row [m/s] (approach speed plus arc terms) for a command in the box.
 
+        (The command corner's headroom is held back only on rows that can bind without it,
+        :func:`~safenav.filters.rows.ramp_corners`, so it does not widen the reach.)
         For the polygon body the arc term grows with the obstacle point's ``distance`` from the
         base origin [m] (scalar or per point); for disks it does not.
         """
-        speed, turn = self._binding_rates(lower, upper, velocity)
+        speed, turn = self._top_rates(lower, upper, velocity)
         kappa = 0.5 * self.robot.omega_max * period
         bound = (speed + self._arm * turn) * (1.0 + kappa)
         return bound + kappa * turn * distance if self._polygon is not None else bound
@@ -549,6 +541,9 @@ class CBFSafetyFilter(SafetyFilter):
                        reaction: float, distance: float | np.ndarray = 0.0) -> float | np.ndarray:
         """Largest barrier value [m] at which a braking or sweep row can bind for a command in the box.
 
+        The braking and sweep rows are written for the pairs within it only: beyond it they hold for every
+        command and get no headroom (:func:`~safenav.filters.rows.ramp_corners`).
+
         A row's left side is at most ``A + W |k_omega|`` with ``A`` the speed part (the speed, its
         arc terms) and ``W`` the turn (:func:`~safenav.filters.rows.braking_coefficient`: ``|k_v| <= 1``,
         and ``|k_omega|`` that of the farthest body point braking at ``alpha_max``). Splitting the
@@ -556,7 +551,7 @@ class CBFSafetyFilter(SafetyFilter):
         neither can exceed its share beyond ``(sqrt(D_A) + sqrt(D_W))^2``.
         """
         robot = self.robot
-        speed, turn = self._binding_rates(lower, upper, velocity)
+        speed, turn = self._top_rates(lower, upper, velocity)
         kappa = 0.5 * robot.omega_max * period
         arc_lever = self._arm if self._polygon is None else distance
         along = speed * (1.0 + kappa) + kappa * turn * arc_lever
