@@ -267,6 +267,28 @@ def test_the_cut_keeps_the_rows_the_command_corner_can_bind(body):
             robot.name, velocity, barrier)
 
 
+@pytest.mark.parametrize("dt", [0.2, 0.25, 0.5])
+@pytest.mark.parametrize("ahead", [2.0, 1.0, 0.45])
+def test_gamma_one_filters_as_the_full_qp(dt, ahead):
+    """A slow robot filtering at its slow scan rate (a TurtleBot at 5, 4 and 2 Hz: ``gamma = min(1, a_max dt /
+    v_max)`` is 0.91, then 1): no error, the cut's answer is the full QP's, and a wall 2 m or 1 m ahead leaves the
+    top speed (until 2026-11-27 the full QP reversed there, and a headroom-aware reach divided by zero)."""
+    robot = preset("rosbot").replace(name="turtlebot_like", radius=0.16, v_max=0.22, v_min=-0.22, omega_max=2.84,
+                                     a_max=1.0, alpha_max=3.0)
+    filt = CBFSafetyFilter(robot, dt)
+    assert filt.gamma == pytest.approx(min(1.0, robot.a_max * dt / robot.v_max))
+    scan = synthetic_scan(robot, Scene.of(Segment((ahead, -0.6), (ahead, 0.6))), Pose2D())
+    u_nom, velocity = np.array([0.22, 0.0]), np.array([0.2, 0.0])
+    result = filt.filter(u_nom, scan, velocity=velocity)
+    assert np.all(np.isfinite(result.u))
+    reference = qpsolvers.solve_problem(CBFSafetyFilter(robot, dt).build_qp(u_nom, scan, velocity, reduce=False),
+                                        solver="quadprog")
+    if result.status is FilterStatus.OK:
+        assert reference.found and np.max(np.abs(reference.x[:2] - result.u)) <= 1e-6
+    if ahead >= 1.0:
+        assert result.status is FilterStatus.OK and result.u[0] == pytest.approx(0.22)
+
+
 @settings(max_examples=600)
 @given(cases(), st.floats(-1.0, 1.0), st.floats(-3.0, 3.0))
 def test_slack_never_changes_the_sign_of_a_hard_row(case, v, omega):
