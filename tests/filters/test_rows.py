@@ -168,7 +168,7 @@ def test_ramp_corners_in_a_box_keep_the_worst_row_of_all_four_corners(case, time
     left_out = 0
     for index in range(G.shape[0]):    # row by row, so that no other row hides one left out wrongly
         row = families.Rows(G[index: index + 1], h[index: index + 1], point[index: index + 1], np.zeros(1, np.intp))
-        every = families.ramp_corners(row, velocity, lag, 0.2)
+        every = families.ramp_corners(row, velocity, lag, 0.2, box=(lower, upper), reduce=False)
         kept = families.ramp_corners(row, velocity, lag, 0.2, box=(lower, upper))
         left_out += len(every) - len(kept)
         worst_every = np.maximum(np.max(every.G @ commands - every.h[:, None], axis=0), 0.0)
@@ -405,3 +405,20 @@ def test_tilted_polygon_half_planes_keep_the_barrier_condition(case, gamma, trav
     moved = unicycle_step(Pose2D(), *command, DT).to_local(points)
     _, after = families.polygon_geometry(moved, np.zeros(len(points)), body.outline, 0.03, kappa)
     assert after.min() >= (1.0 - gamma) * H - 1e-9
+
+
+def test_the_command_corner_holds_headroom_back_only_on_rows_a_command_in_the_box_can_violate():
+    """``gamma |h|`` is held back at the command's corner where some mean velocity in the box violates the plain
+    row; a row that none can violate keeps its right side (with ``gamma = 1`` held back everywhere it forbade
+    approaching anything in range)."""
+    lower, upper = np.array([0.1, -0.2, 0.1, 0.0]), np.array([0.3, 0.2, 0.3, 0.2])
+    G = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.0, 0.0]])
+    h = np.array([10.0, 0.2, 0.1])              # beyond any command; within reach; within reach
+    rows = families.Rows(G, h, np.arange(3), np.zeros(3, np.intp))
+    velocity = np.array([0.2, 0.0])
+    for headroom in (0.3, 1.0):
+        written = families.ramp_corners(rows, velocity, 0.5, headroom, box=(lower, upper), reduce=False)
+        command_corner = written.h[:3]          # corner-major: the command's corner first
+        np.testing.assert_allclose(command_corner, [10.0, 0.2 * (1.0 - headroom), 0.1 * (1.0 - headroom)])
+        kept = families.ramp_corners(rows, velocity, 0.5, headroom, box=(lower, upper))
+        assert 0 not in kept.point               # the row no command can violate is left out
