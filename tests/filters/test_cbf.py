@@ -189,17 +189,6 @@ def test_reduction_gives_the_answer_of_the_full_qp(case):
     assert result.n_constraints <= full.G.shape[0] - 4
 
 
-def _where_barrier(filt: CBFSafetyFilter, origin, direction, barrier: float) -> np.ndarray:
-    """The point [m] along ``origin + t direction`` (base frame) whose barrier is ``barrier`` [m] (bisection)."""
-    origin, direction = np.asarray(origin, dtype=float), np.asarray(direction, dtype=float)
-    low, high = 0.0, 5.0
-    for _ in range(50):
-        middle = 0.5 * (low + high)
-        value = filt.body.barrier((origin + middle * direction)[None], filt.margin, 0.0, filt.lookahead)
-        low, high = (middle, high) if value < barrier else (low, middle)
-    return origin + high * direction
-
-
 def _uncovered_binding_rows(filt: CBFSafetyFilter, scan, velocity) -> int:
     """How many rows of the full problem (no cut) some command in the box violates that the reduced rows
     do not contain (the same left side, a right side no larger)."""
