@@ -34,11 +34,13 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
-from safenav.filters.body import BodyModel
+from safenav.filters.body import BodyModel, inscribed_radius
 from safenav.filters.perception import (
+    SEEN_FREE_TRAVEL,
     SHADOW_SPACING,
     Frontier,
     PointMemory,
+    SeenFree,
     beam_gap,
     beam_points,
     dead_reckoning,
@@ -321,6 +323,10 @@ class View(NamedTuple):
     """How many points follow those as the edge of what the lidars see (at ``range_max``,
     :func:`~safenav.filters.perception.horizon_points`, and along the edges of what obstacles hide,
     :func:`~safenav.filters.perception.shadow_points`); the remembered ones come last."""
+    blind_travel: float = 0.0
+    """How far [m] the base may translate towards a side no lidar sees (:attr:`frontier`'s ``forward`` or
+    ``backward``) with the body and the margin in space earlier scans saw free
+    (:meth:`~safenav.filters.perception.SeenFree.travel`); 0 without such a side or such scans."""
 
     @property
     def horizon(self) -> np.ndarray:
@@ -408,11 +414,22 @@ class SafetyFilter(abc.ABC):
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
+        speed = max(robot.v_max, -robot.v_min)
+        stop = speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
         if memory_range is None:
-            speed = max(robot.v_max, -robot.v_min)
-            stop = speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
             memory_range = self.reach + self.margin + stop + 1.0
         self.memory = PointMemory(_checks.positive("memory_range", memory_range), capacity) if capacity else None
+        #: Earlier scans that say which space no lidar sees now was seen free: a robot with a side no lidar
+        #: sees translates towards it only that far (:attr:`View.blind_travel`). Kept with the memory.
+        self.seen_free = SeenFree(float(memory_range)) if capacity else None
+        # The seen-free grid reaches the body, the margin and a stop from full speed that way (forward, backward),
+        # and at least SEEN_FREE_TRAVEL.
+        self._seen_free_extent = tuple(
+            self.body.reach + self.margin + max(1.25 * (side * (self.dt + self.time_constant) +
+                                                        side**2 / (2.0 * robot.a_max)), SEEN_FREE_TRAVEL)
+            for side in (robot.v_max, max(-robot.v_min, 0.0)))
+        self._inside = inscribed_radius(robot)
+        self._blind_travel = 0.0
         self._last_time: float | None = None
         self._last_pose: Pose2D | None = None
         self._last_velocity: np.ndarray | None = None
@@ -498,6 +515,9 @@ class SafetyFilter(abc.ABC):
         """Forget everything from earlier calls (call between episodes): memory, clock, warm starts."""
         if self.memory is not None:
             self.memory.clear()
+        if self.seen_free is not None:
+            self.seen_free.clear()
+        self._blind_travel = 0.0
         self._last_time = None
         self._last_pose = None
         self._last_velocity = None
@@ -641,8 +661,14 @@ class SafetyFilter(abc.ABC):
     def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
         """Move the remembered points by the motion since the previous call."""
         odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
-        if self.memory is not None and self._called and len(self.memory):
-            self.memory.carry(*self._motion(elapsed, velocity, odometry))
+        moving = self._called and ((self.memory is not None and len(self.memory)) or
+                                   (self.seen_free is not None and len(self.seen_free)))
+        if moving:
+            motion = self._motion(elapsed, velocity, odometry)
+            if self.memory is not None and len(self.memory):
+                self.memory.carry(*motion)
+            if self.seen_free is not None and len(self.seen_free):
+                self.seen_free.carry(*motion)
         self._last_pose = odometry
         self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
 
@@ -656,6 +682,12 @@ class SafetyFilter(abc.ABC):
         if self._last_velocity is not None and velocity is not None and np.all(np.isfinite(velocity)):
             return dead_reckoning(self._last_velocity, velocity, elapsed)
         return unicycle_step(Pose2D(), float(self._last_command[0]), float(self._last_command[1]), elapsed), (0.0, 0.0)
+
+    @property
+    def blind_travel(self) -> float:
+        """How far [m] the last call let the base translate towards a side no lidar sees (:attr:`View.blind_travel`):
+        0 before the first call, for a robot without such a side, and until earlier scans saw that side free."""
+        return self._blind_travel
 
     def remembered_points(self, *, velocity: Any = None, pose: Pose2D | Sequence[float] | None = None,
                           now: float | None = None) -> np.ndarray:
@@ -839,8 +871,14 @@ class SafetyFilter(abc.ABC):
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
+        travel = 0.0
+        if (frontier.forward or frontier.backward) and self.seen_free is not None:
+            extent = max(self._seen_free_extent[0] if frontier.forward else 0.0,
+                         self._seen_free_extent[1] if frontier.backward else 0.0)
+            travel = self.seen_free.travel(scans, self._inside, self.body.reach + self.margin, extent)
+        self._blind_travel = travel
         if self.memory is None:
-            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0])
+            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0], travel)
         if frontier.complete:
             # Every direction round the body is seen now: a remembered point is either seen again or
             # occluded, and an occluded point cannot be the first to come within the margin.
@@ -851,7 +889,7 @@ class SafetyFilter(abc.ABC):
         self._recalled = (recalled, uncertainty)
         points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
         return View(scans, points, np.concatenate((np.zeros(seen.shape[0]), uncertainty)), current.shape[0],
-                    frontier, horizon.shape[0])
+                    frontier, horizon.shape[0], travel)
 
     @staticmethod
     def _told_horizon(result: FilterResult, view: View) -> FilterResult:
@@ -872,6 +910,8 @@ class SafetyFilter(abc.ABC):
         if self.memory is not None:
             recalled, uncertainty = self._recalled
             self.memory.store(view.points[: view.n_current], recalled, uncertainty)
+        if self.seen_free is not None and (view.frontier.forward or view.frontier.backward):
+            self.seen_free.store(view.scans, max(scan_noise(self.robot), 0.0))
 
     @staticmethod
     def current_frame(scan: LaserScan, velocity: np.ndarray, scan_age: float) -> LaserScan:

@@ -75,6 +75,19 @@ def inside_polygon(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.count_nonzero(straddles & (x < crossing_x), axis=1) % 2 == 1
 
 
+def inscribed_radius(robot: RobotSpec) -> float:
+    """Radius of the largest disk about the base origin inside the robot's body [m]: its radius for a round
+    robot, the distance to the nearest edge of a convex footprint (0 for a concave one)."""
+    if robot.footprint is None:
+        return float(robot.radius)
+    polygon = counter_clockwise(np.asarray(robot.footprint, dtype=float))
+    if not is_convex(polygon):
+        return 0.0
+    edge = np.roll(polygon, -1, axis=0) - polygon
+    depth = (edge[:, 0] * polygon[:, 1] - edge[:, 1] * polygon[:, 0]) / np.hypot(edge[:, 0], edge[:, 1])
+    return max(float(-depth.max()), 0.0) if np.all(depth <= 0.0) else 0.0
+
+
 @dataclass(frozen=True, eq=False)
 class BodyModel:
     """The body as disks in the base frame, and its outline.

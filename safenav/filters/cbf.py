@@ -227,6 +227,7 @@ class _Problem(NamedTuple):
     velocity: np.ndarray | None
     limits: tuple[np.ndarray, np.ndarray]   # the command's box (velocity limits and reachability)
     clearance: float            # distance from the body to the nearest point [m]
+    blind_speed: float          # largest speed towards a side no lidar sees [m/s] (View.blind_travel)
 
 
 class CBFSafetyFilter(SafetyFilter):
@@ -493,12 +494,21 @@ class CBFSafetyFilter(SafetyFilter):
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, self.body.reach)
-            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward))
+            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward,
+                                                           self._blind_speed(view.blind_travel, reaction)))
             rows = families.stack(obstacle, hard)
         else:
             rows = obstacle
         return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
-                        clearance)
+                        clearance, self._blind_speed(view.blind_travel, reaction))
+
+    def _blind_speed(self, travel: float, reaction: float) -> float:
+        """Largest speed [m/s] towards a side no lidar sees: the base stops within ``travel`` [m], the space
+        earlier scans saw free that side (:attr:`View.blind_travel`), after ``reaction`` [s] at that speed."""
+        if travel <= 0.0:
+            return 0.0
+        a_max = self.robot.a_max
+        return a_max * (math.sqrt(reaction * reaction + 2.0 * travel / a_max) - reaction)
 
     def _clearance(self, points: np.ndarray, distance: np.ndarray) -> float:
         """Distance from the body to the nearest point [m] (``distance``: each point's from the base)."""
@@ -819,10 +829,11 @@ class CBFSafetyFilter(SafetyFilter):
             bound = stage_h + np.where(stage_relaxed, slack, 0.0)
         u = np.clip(z[:2], lower, upper)
         frontier = view.frontier
-        if frontier.backward:   # exactly never towards an unseen rear (the solver meets rows to ~1e-10)
-            u[0] = max(u[0], min(0.0, upper[0]))
+        # Exactly never faster towards an unseen side than the blind rows allow (the solver meets rows to ~1e-10).
+        if frontier.backward:
+            u[0] = max(u[0], min(-problem.blind_speed, upper[0]))
         if frontier.forward:
-            u[0] = min(u[0], max(0.0, lower[0]))
+            u[0] = min(u[0], max(problem.blind_speed, lower[0]))
         lifted = self._lifted(u, problem)
         residual = rows.G @ lifted - bound
         if not np.all(residual <= VERIFY_TOLERANCE):
@@ -932,13 +943,20 @@ class CBFSafetyFilter(SafetyFilter):
             text = {"barrier": "keeps the barrier condition", "braking": "keeps the speed it can brake from",
                     "sweep": "caps the speed along a heading the base may still turn to",
                     "gap": "does not move towards space behind invalid beams",
-                    "blind": "does not translate towards a side no lidar sees"}[family]
+                    "blind": _blind_text(problem.blind_speed)}[family]
             return Reason(family, text, _point(points, int(rows.point[index])))
         robot = self.robot
         if np.any(u_nom < robot.lower) or np.any(u_nom > robot.upper):
             return Reason("limits", f"clipped to the velocity limits {robot.lower.tolist()}..{robot.upper.tolist()}")
         return Reason("acceleration", f"not reachable within one period from the velocity "
                                       f"{problem.velocity.tolist() if problem.velocity is not None else None}")
+
+
+def _blind_text(speed: float) -> str:
+    if speed <= 0.0:
+        return "does not translate towards a side no lidar sees"
+    return (f"translates towards a side no lidar sees at most at {speed:.3f} m/s, the speed it stops from within "
+            f"the space earlier scans saw free there")
 
 
 def _point(points: np.ndarray, index: int) -> tuple[float, float] | None:

@@ -20,10 +20,12 @@ nominal by an escape command until the nominal's way is clear again:
    row, else the nearest point ahead) towards the opening nearest the way the nominal was heading
    (the chord of its arc over one second): the nearest (in bearing) place where two
    neighbouring scan points are farther apart than the body's corridor (``2 clear_half_width``),
-   that is, an edge of the blocking obstacle or a door beside it. The side is the sense of the turn
-   from the obstacle's bearing to the opening's (facing a wall obliquely, a door up the wall may lie
-   right of the heading and still be reached by going left); without an opening, the side with
-   more free space, or the side the nominal turns to.
+   that is, an edge of the blocking obstacle or a door beside it, else than the wrapped filter's
+   narrow body's (``2 gap_half_width``: a door only it fits, which 5. drives through). The side is
+   the sense of the turn from the obstacle's bearing to the opening's (facing a wall obliquely, a
+   door up the wall may lie right of the heading and still be reached by going left); without an
+   opening, the side with more free space, or the side the nominal turns to (by more than
+   :data:`SIDE_DEADBAND` of ``omega_max``: not the sign of a rounding error), else left.
 3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
    with it on the other side (its nearest current or remembered point: a lidar that does not look
    back loses an obstacle's end as the robot goes round it), holding ``follow_distance`` beyond the
@@ -32,7 +34,9 @@ nominal by an escape command until the nominal's way is clear again:
    still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one
    period's turn, at the acceleration limit, barely starts, and going back to following at once
    kept a robot held by its remembered points turning a degree every third of a second).
-4. **Back out** when forward is blocked and the rear is seen and free. **Drive out of a pocket**
+4. **Back out** when forward is blocked and the rear is seen and free (by a lidar now, or, behind a lidar
+   that does not look back, by earlier scans: the wrapped filter's
+   :attr:`~safenav.filters.SafetyFilter.blind_travel`). **Drive out of a pocket**
    when the escape has turned :data:`WAY_OUT_TURN` (half a turn) in place without driving
    (something within the following distance ahead every way it faced): along the direction whose
    corridor, among the current and remembered points, is free the longest, up to the following
@@ -123,6 +127,10 @@ FORWARD_REQUEST = 0.25
 
 #: Openings farther than this from the robot do not choose the side [m].
 OPENING_RANGE = 2.0
+
+#: A nominal turning slower than this share of ``omega_max`` does not choose the side (a heading straight at the
+#: goal turns by a rounding error's sign).
+SIDE_DEADBAND = 1e-3
 
 #: How many places where deadlocks began the escape remembers (the oldest is forgotten first).
 SPOTS = 8
@@ -397,12 +405,16 @@ class Escape:
         left = _free(points, 0.25 * math.pi, 0.75 * math.pi)
         right = _free(points, -0.75 * math.pi, -0.25 * math.pi)
         intent = _intent(nominal)
-        opening = self._nearest_opening(scans, intent)
+        opening = None
+        for width in dict.fromkeys((self.clear_half_width, min(self.gap_half_width, self.clear_half_width))):
+            opening = self._nearest_opening(scans, intent, width)    # the body's corridor, then the narrow body's
+            if opening is not None:
+                break
         if opening is not None:
             side = _side_towards(opening, _blocking_bearing(points, blocking))
         elif abs(left - right) > 0.2:
             side = 1 if left > right else -1
-        elif nominal[1] != 0.0:
+        elif abs(nominal[1]) > SIDE_DEADBAND * self.robot.omega_max:   # not the sign of a rounding error
             side = 1 if nominal[1] > 0.0 else -1
         else:
             side = 1
@@ -443,13 +455,14 @@ class Escape:
         x, y, yaw = self._odometry
         return _along_across(np.array(self._spots) - np.array([x, y]), yaw + directions)
 
-    def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float) -> float | None:
+    def _nearest_opening(self, scans: tuple[LaserScan, ...], intent: float, half_width: float) -> float | None:
         """Bearing [rad] of the opening nearest the ``intent`` bearing [rad], within ``gap_window`` of it;
         ``None`` if none.
 
         An opening lies between two neighbouring points of one scan (in beam order, so across
-        beams with no return) farther apart than ``2 clear_half_width``, the nearer of them within
-        :data:`OPENING_RANGE`; its bearing is that of the pair's midpoint.
+        beams with no return) farther apart than ``2 half_width`` [m] (``clear_half_width``, or the
+        narrow body's ``gap_half_width``), the nearer of them within :data:`OPENING_RANGE`; its
+        bearing is that of the pair's midpoint.
         """
         best = None
         for scan in scans:
@@ -457,7 +470,7 @@ class Escape:
             if points.shape[0] < 2:
                 continue
             first, second = points[:-1], points[1:]
-            wide = np.hypot(*(second - first).T) > 2.0 * self.clear_half_width
+            wide = np.hypot(*(second - first).T) > 2.0 * half_width
             near = np.minimum(np.hypot(*first.T), np.hypot(*second.T)) < OPENING_RANGE
             middle = 0.5 * (first + second)[wide & near]
             if middle.shape[0] == 0:
@@ -555,11 +568,13 @@ class Escape:
         self._out_left = max(float(free[best]) - keep, self.config.follow_distance)
 
     def _rear_free(self, scans: tuple[LaserScan, ...], keep: float) -> bool:
-        for scan in scans:
-            rear = scan.sector(0.75 * math.pi, -0.75 * math.pi)
-            if rear.complete and rear.min_range > keep + 0.2:
-                return True
-        return False
+        """Whether a lidar sees the 90 degrees behind free beyond ``keep + 0.2`` [m], or, when none looks
+        there, whether earlier scans saw the space behind free for ``follow_distance``
+        (:attr:`~safenav.filters.SafetyFilter.blind_travel`: the filter lets the base back that far)."""
+        rears = [scan.sector(0.75 * math.pi, -0.75 * math.pi) for scan in scans]
+        if any(rear.complete and rear.min_range > keep + 0.2 for rear in rears):
+            return True
+        return all(rear.n_beams == 0 for rear in rears) and self.inner.blind_travel >= self.config.follow_distance
 
     def _find_gap(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> float | None:
         """The passage heading nearest the m-line within ``gap_window`` of it (since the deadlock began) [rad]:

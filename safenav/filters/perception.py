@@ -45,8 +45,10 @@ __all__ = [
     "START_BLIND_CLEARANCE",
     "Frontier",
     "PointMemory",
+    "SeenFree",
     "beam_gap",
     "beam_points",
+    "blind_cells",
     "body_clearance",
     "dead_reckoning",
     "nearest_per_bin",
@@ -468,6 +470,220 @@ class PointMemory:
             points, uncertainty = points[order], uncertainty[order]
         self._points, self._uncertainty = points, uncertainty
         self._frame, self._error = Pose2D(), np.zeros(2)
+
+
+#: Spacing of the grid on which the space no lidar sees now is checked against earlier scans [m].
+SEEN_FREE_SPACING = 0.025
+#: How many earlier scans :class:`SeenFree` keeps (the oldest go first).
+SEEN_FREE_SCANS = 12
+#: How far the base moves [m], or turns [rad], between two scans :class:`SeenFree` keeps.
+SEEN_FREE_STEP = (0.1, math.radians(20.0))
+#: Travel [m] towards a side no lidar sees that the seen-free grid covers at least (more for a robot that needs
+#: more to stop from full speed).
+SEEN_FREE_TRAVEL = 0.3
+#: Half-widths [beams] of the windows over which a kept scan's smallest reading is precomputed.
+_WINDOWS = np.array([1, 2, 4, 8, 16, 32, 64])
+
+
+@functools.lru_cache(maxsize=32)
+def blind_cells(keys: tuple[tuple[float, float, int, float, float, float], ...], inside: float, extent: float,
+                spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The grid cells near the body that lie partly outside every field of view (cached per layout).
+
+    The plane is tiled by squares of side ``spacing`` centred on multiples of it; each is
+    enclosed by the disk of radius ``spacing / sqrt(2)`` about its centre. A cell is kept when it
+    reaches within ``extent`` of the base origin, is not wholly inside the disk of radius
+    ``inside`` about it (the body's own space), and its disk is not wholly inside some lidar's
+    field of view (``keys`` as :func:`unknown_region`'s layouts: every point of the other cells is in
+    some lidar's view now).
+
+    Returns:
+        ``(centres (N, 2) [m], their distances from the base origin (N,) [m])``, nearest first.
+    """
+    radius = spacing / math.sqrt(2.0)
+    count = math.ceil((extent + radius) / spacing)
+    axis = spacing * np.arange(-count, count + 1, dtype=float)
+    x, y = np.meshgrid(axis, axis, indexing="ij")
+    centres = np.column_stack((x.ravel(), y.ravel()))
+    distance = np.hypot(centres[:, 0], centres[:, 1])
+    keep = (distance - radius < extent) & (distance + radius > inside)
+    centres, distance = centres[keep], distance[keep]
+    seen = np.zeros(len(centres), dtype=bool)
+    for angle_min, increment, n_beams, mx, my, myaw in keys:
+        dx, dy = centres[:, 0] - mx, centres[:, 1] - my
+        reach = np.hypot(dx, dy)
+        if n_beams * increment >= TWO_PI - 1e-9:
+            seen |= reach > radius
+            continue
+        middle = angle_min + 0.5 * (n_beams - 1) * increment
+        half_span = 0.5 * n_beams * increment         # each beam covers half an increment either side
+        relative = np.abs(np.mod(np.arctan2(dy, dx) - myaw - middle + math.pi, TWO_PI) - math.pi)
+        half = np.arcsin(np.minimum(radius / np.maximum(reach, 1e-12), 1.0))
+        seen |= (reach > radius) & (relative + half <= half_span)
+    order = np.argsort(distance[~seen], kind="stable")
+    centres, distance = centres[~seen][order], distance[~seen][order]
+    centres.flags.writeable = False
+    distance.flags.writeable = False
+    return centres, distance
+
+
+class SeenFree:
+    """Earlier scans, carried by odometry, that say which space no lidar sees now was seen free.
+
+    A lidar that does not see all round (the m2wr's 180-degree lidar looks ahead) cannot tell
+    whether the space behind the robot is free, so translating towards it is forbidden
+    (:func:`unknown_region`'s ``backward``). Yet a robot that drove forward has seen that space:
+    this memory keeps up to :data:`SEEN_FREE_SCANS` earlier scans (a new one once the base has
+    moved or turned by :data:`SEEN_FREE_STEP` since the last one kept), moves them with the base
+    by odometry as :class:`PointMemory` moves points (the same error bound, A5), and answers
+    :meth:`travel`: how far the base may translate into the unseen side while the body and the
+    margin stay in space some kept scan saw free.
+
+    A kept scan says the space is free along each beam up to its reading (less twice the range
+    noise; ``range_max`` for no return), and between two beams as far as both read (a narrower
+    obstacle between two beams is A2's, as for every scan). The world is static (A1).
+
+    Args:
+        max_range: kept scans whose lidar is farther than this from the base are forgotten [m].
+        capacity: largest number of scans kept.
+        step: ``(distance [m], angle [rad])`` the base moves or turns between two kept scans.
+    """
+
+    def __init__(self, max_range: float, capacity: int = SEEN_FREE_SCANS,
+                 step: tuple[float, float] = SEEN_FREE_STEP) -> None:
+        self.max_range = float(max_range)
+        self.capacity = int(capacity)
+        self.step = (float(step[0]), float(step[1]))
+        self.clear()
+
+    def __len__(self) -> int:
+        return sum(len(group[0]) for group in self._groups.values())
+
+    def clear(self) -> None:
+        """Forget every kept scan."""
+        # Per beam layout (angle_min, increment, n_beams): lidar poses in the current base frame (F, 3), the
+        # odometry error bound accumulated since each was kept and the base's path length since then (F, 3),
+        # the windows' smallest readings (F, W, n), and the order they were kept in (F,).
+        self._groups: dict[tuple[float, float, int], list[np.ndarray]] = {}
+        self._since: Pose2D | None = None      # the base frame in the frame of the last kept scan
+        self._count = 0
+
+    def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Account for the motion to a new base frame, which is at ``motion`` in the old one (as
+        :meth:`PointMemory.carry`)."""
+        if self._since is not None:
+            self._since = self._since.compose(motion)
+        cos, sin = math.cos(motion.yaw), math.sin(motion.yaw)
+        for group in self._groups.values():
+            poses, error = group[0], group[1]
+            dx, dy = poses[:, 0] - motion.x, poses[:, 1] - motion.y
+            poses[:, 0], poses[:, 1] = cos * dx + sin * dy, -sin * dx + cos * dy
+            poses[:, 2] -= motion.yaw
+            error[:, :2] += uncertainty_rate
+            error[:, 2] += math.hypot(motion.x, motion.y)
+
+    def store(self, scans: tuple[LaserScan, ...], noise: float) -> None:
+        """Keep ``scans`` (base frame, through their mounts) when the base has moved or turned far enough
+        since the last kept ones; ``noise`` is the range noise's standard deviation [m]."""
+        since = self._since
+        if since is not None and math.hypot(since.x, since.y) < self.step[0] and abs(since.yaw) < self.step[1]:
+            return
+        self._since = Pose2D()
+        self._count += 1
+        for scan in scans:
+            readings = scan.readings
+            seen = np.where(readings == _HIT, scan.ranges - 2.0 * noise,
+                            np.where(readings == _NO_RETURN, scan.range_max, -np.inf))
+            minima = _window_minima(seen, scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9)
+            mount = scan.mount
+            key = (scan.angle_min, scan.angle_increment, scan.n_beams)
+            entry = [np.array([[mount.x, mount.y, mount.yaw]]), np.zeros((1, 3)), minima[None], np.array([self._count])]
+            group = self._groups.get(key)
+            self._groups[key] = entry if group is None else [
+                np.concatenate((old, new)) for old, new in zip(group, entry, strict=True)]
+        # Forget scans from lidars now out of range, then the oldest beyond the capacity.
+        for key, group in list(self._groups.items()):
+            near = np.hypot(group[0][:, 0], group[0][:, 1]) <= self.max_range
+            self._groups[key] = [array[near] for array in group]
+        if len(self) > self.capacity:
+            order = np.sort(np.concatenate([group[3] for group in self._groups.values()]))
+            oldest = order[len(order) - self.capacity]
+            for key, group in list(self._groups.items()):
+                self._groups[key] = [array[group[3] >= oldest] for array in group]
+        self._groups = {key: group for key, group in self._groups.items() if len(group[0])}
+
+    def certified(self, centres: np.ndarray, distance: np.ndarray, radius: float) -> np.ndarray:
+        """Which disks of ``radius`` [m] about ``centres`` ``(N, 2)`` [m] (at ``distance`` ``(N,)`` from the base
+        origin) some kept scan saw free, with the odometry's error bound added to the radius.
+
+        Each carry's error (``e_translation``, ``e_rotation``) is a translation and a turn about the base
+        origin of that moment, which lies within the base's path length since the scan was kept of the base
+        origin now: a point ``d`` from the base is off by at most ``sum(e_translation) + (d + path)
+        sum(e_rotation)``.
+        """
+        free = np.zeros(len(centres), dtype=bool)
+        for (angle_min, increment, n_beams), (poses, error, minima, _) in self._groups.items():
+            dx = centres[None, :, 0] - poses[:, 0:1]
+            dy = centres[None, :, 1] - poses[:, 1:2]
+            reach = np.hypot(dx, dy)                                                     # (F, N)
+            disk = radius + error[:, 0:1] + (distance[None, :] + radius + error[:, 2:3]) * error[:, 1:2]
+            bearing = np.arctan2(dy, dx) - poses[:, 2:3] - angle_min
+            index = np.floor(np.mod(bearing + 0.5 * increment, TWO_PI) / increment).astype(np.intp)
+            half = np.arcsin(np.minimum(disk / np.maximum(reach, 1e-12), 1.0))
+            # The window holds every beam whose cell meets the disk's bearings, and one more either side
+            # (the beams that bracket its edge directions).
+            level = np.searchsorted(_WINDOWS, np.ceil(half / increment) + 2.0)
+            usable = (index < n_beams) & (disk < reach) & (level < len(_WINDOWS))
+            seen = minima[np.arange(len(poses))[:, None], np.minimum(level, len(_WINDOWS) - 1),
+                          np.minimum(index, n_beams - 1)]
+            free |= np.any(usable & (seen >= reach + disk), axis=0)
+        return free
+
+    def travel(self, scans: tuple[LaserScan, ...], inside: float, keep: float, extent: float,
+               spacing: float = SEEN_FREE_SPACING) -> float:
+        """How far the base may translate [m] with every point no lidar sees now within ``keep`` of its path
+        seen free by a kept scan.
+
+        The body (every point within its reach of the base origin) and the margin, ``keep`` [m] in
+        all, over a path of length ``s`` from the base origin stay within ``keep + s`` of it; the
+        answer is the largest ``s`` such that every grid cell (:func:`blind_cells`) within ``keep + s``
+        that no lidar sees now and that is not inside the body's inscribed disk (``inside`` [m]) was
+        seen free, at most ``extent - keep`` (the grid reaches ``extent`` [m]). Zero when nothing
+        has been kept.
+        """
+        if not self._groups:
+            return 0.0
+        keys = tuple(_layout_key(scan) for scan in scans)
+        centres, distance = blind_cells(keys, inside, extent, spacing)
+        radius = spacing / math.sqrt(2.0)
+        if not centres.shape[0]:
+            return max(extent - keep, 0.0)
+        free = self.certified(centres, distance, radius)
+        unseen = distance[~free] - radius
+        reach = float(unseen[0]) if unseen.size else extent
+        return max(min(reach, extent) - keep, 0.0)
+
+
+def _window_minima(seen: np.ndarray, wraps: bool) -> np.ndarray:
+    """``(len(_WINDOWS), n)``: per window half-width ``w`` and beam ``b``, the smallest of ``seen[b - w .. b + w]``
+    (beams outside the scan count as ``-inf``, or wrap round for a full turn)."""
+    n = seen.size
+    pad = int(_WINDOWS[-1])
+    if wraps:
+        padded = np.concatenate((np.resize(seen[::-1], pad)[::-1] if n else seen, seen, np.resize(seen, pad)))
+    else:
+        padded = np.concatenate((np.full(pad, -np.inf), seen, np.full(pad, -np.inf)))
+    out = np.empty((len(_WINDOWS), n))
+    # A window of half-width 2w is the smaller of the two windows of half-width w centred w either side.
+    current = np.minimum(np.minimum(padded[:-2], padded[1:-1]), padded[2:])      # half-width 1, index shifted by 1
+    offset, width = 1, 1
+    for level, target in enumerate(_WINDOWS):
+        while width < target:
+            current = np.minimum(current[:-2 * width], current[2 * width:])
+            offset += width
+            width *= 2
+        out[level] = current[pad - offset: pad - offset + n]
+    return out
 
 
 def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[Pose2D, tuple[float, float]]:

@@ -648,21 +648,23 @@ def gap_rows(points: np.ndarray, normals: np.ndarray, side_tolerance: float, rea
     return _rows(G, np.zeros(G.shape[0]), np.full(G.shape[0], -1), "gap")
 
 
-def blind_rows(forward: bool, backward: bool) -> Rows:
-    """No translation towards a side of the body outside every field of view (hard).
+def blind_rows(forward: bool, backward: bool, speed: float = 0.0) -> Rows:
+    """No translation towards a side of the body outside every field of view beyond ``speed`` (hard).
 
-    Invariant: ``v <= 0`` when translating forward would sweep outline samples that no
+    Invariant: ``v <= speed`` when translating forward would sweep outline samples that no
     lidar sees and whose way ahead does not come into view within the body's size (a
-    180-degree lidar mounted backwards); ``v >= 0`` likewise backwards (the rear of a
-    forward-facing 180-degree lidar). Assumption: unknown space is never free.
+    180-degree lidar mounted backwards); ``v >= -speed`` likewise backwards (the rear of a
+    forward-facing 180-degree lidar). ``speed`` [m/s] is 0 unless earlier scans saw the space
+    that side free (the caller's stopping distance within it). Assumption: unknown space is
+    never free.
     """
     G, h = [], []
     if forward:
         G.append([1.0, 0.0, 0.0, 0.0])
-        h.append(0.0)
+        h.append(speed)
     if backward:
         G.append([-1.0, 0.0, 0.0, 0.0])
-        h.append(0.0)
+        h.append(speed)
     G_array = np.array(G, dtype=float).reshape(-1, 4)
     return _rows(G_array, np.array(h, dtype=float), np.full(len(h), -1), "blind")
 

@@ -16,10 +16,19 @@ import numpy as np
 import pytest
 
 from safenav.base_models import BASE_MODELS, period_velocities
-from safenav.filters.perception import SHADOW_SPACING, PointMemory, dead_reckoning, shadow_points
+from safenav.filters import perception
+from safenav.filters.perception import (
+    SHADOW_SPACING,
+    PointMemory,
+    SeenFree,
+    blind_cells,
+    dead_reckoning,
+    shadow_points,
+)
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import preset
 from safenav.scan import Reading
+from safenav.synthetic import Circle, Scene, Segment, synthetic_scan
 
 SUBSTEPS = 20
 TIME_CONSTANT = 0.04
@@ -155,3 +164,148 @@ def test_shadow_edges_are_the_beams_a_neighbour_sees_past_round_the_turn_only_fo
                     for i in sorted(_shadow_edges_by_hand(scan, reach, jump))
                     for k in range(1, math.floor((reach + lever - scan.ranges[i]) / SHADOW_SPACING) + 1)]
         np.testing.assert_allclose(points, np.array(expected).reshape(-1, 2), atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------- seen free
+
+
+def _window_minima_by_hand(seen: np.ndarray, half: int, wraps: bool) -> np.ndarray:
+    n = seen.size
+    out = np.empty(n)
+    for beam in range(n):
+        window = np.arange(beam - half, beam + half + 1)
+        if wraps:
+            out[beam] = seen[window % n].min()
+        else:
+            inside = (window >= 0) & (window < n)
+            out[beam] = seen[window[inside]].min() if inside.all() else -np.inf
+    return out
+
+
+@pytest.mark.parametrize("wraps", [False, True])
+@pytest.mark.parametrize("n", [5, 90, 720])
+def test_window_minima_are_the_smallest_reading_of_each_window(n, wraps):
+    rng = np.random.default_rng(n)
+    seen = rng.uniform(0.1, 5.0, n)
+    seen[rng.random(n) < 0.1] = -np.inf
+    minima = perception._window_minima(seen, wraps)
+    for level, half in enumerate(perception._WINDOWS):
+        np.testing.assert_array_equal(minima[level], _window_minima_by_hand(seen, int(half), wraps))
+
+
+def _fov_covers(lidar, mount: Pose2D, points: np.ndarray) -> np.ndarray:
+    """Whether each point's bearing from the lidar lies within the half-increments its beams cover."""
+    bearing = np.arctan2(points[:, 1] - mount.y, points[:, 0] - mount.x) - mount.yaw
+    offset = np.mod(bearing - lidar.angle_min + 0.5 * lidar.angle_increment, 2.0 * math.pi)
+    return offset <= lidar.n_beams * lidar.angle_increment
+
+
+@pytest.mark.parametrize("name", ["rosbot", "m2wr"])
+def test_every_cell_left_out_of_the_blind_cells_is_wholly_in_the_field_of_view(name):
+    robot = preset(name)
+    scan = synthetic_scan(robot, Scene())
+    spacing, extent, inside = 0.025, 0.9, perception_inside(robot)
+    cells, distance = blind_cells((perception._layout_key(scan),), inside, extent, spacing)
+    radius = spacing / math.sqrt(2.0)
+    axis = spacing * np.arange(-40, 41)
+    grid = np.array([(x, y) for x in axis for y in axis])
+    near = (np.hypot(grid[:, 0], grid[:, 1]) - radius < extent) & (np.hypot(grid[:, 0], grid[:, 1]) + radius > inside)
+    kept = {tuple(np.round(cell / spacing).astype(int)) for cell in cells}
+    angles = np.linspace(0.0, 2.0 * math.pi, 33)
+    ring = radius * np.column_stack((np.cos(angles), np.sin(angles)))
+    for centre in grid[near]:
+        if tuple(np.round(centre / spacing).astype(int)) in kept:
+            continue
+        assert np.all(_fov_covers(robot.lidar, scan.mount, centre + ring)), centre
+    np.testing.assert_array_equal(np.sort(distance), distance)
+    if name == "rosbot":
+        assert cells.shape[0] == 0        # a full turn sees every cell but those round the lidar itself
+    else:
+        behind = cells[cells[:, 0] < 0.0]
+        assert behind.shape[0] > 0 and np.all(np.hypot(behind[:, 0], behind[:, 1]) + radius > inside)
+
+
+def perception_inside(robot) -> float:
+    from safenav.filters.body import inscribed_radius
+    return inscribed_radius(robot)
+
+
+def _random_scene(rng: np.random.Generator) -> Scene:
+    items = []
+    for _ in range(rng.integers(2, 6)):
+        start = rng.uniform(-3.0, 3.0, 2)
+        end = start + rng.uniform(-2.0, 2.0, 2)
+        items.append(Segment(tuple(start), tuple(end)))
+    for _ in range(rng.integers(0, 6)):
+        items.append(Circle(tuple(rng.uniform(-3.0, 3.0, 2)), float(rng.uniform(0.05, 0.3))))
+    return Scene.of(*items)
+
+
+def _seen_free_walk(seed: int) -> tuple[int, int]:
+    """A random walk through a random scene of walls and poles, the scans kept by SeenFree and carried by a
+    motion that errs by its whole bound each period (a translation and a turn about the base, in random
+    directions), and disks queried round the robot; asserts that whatever is certified is free in the world.
+    Returns how many disks were certified and queried."""
+    rng = np.random.default_rng(seed)
+    robot = preset("m2wr")
+    scene = _random_scene(rng)
+    memory = SeenFree(max_range=3.0, capacity=12, step=(0.05, math.radians(10.0)))
+    pose = Pose2D(float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-3, 3)))
+    noise = 0.01
+    certified_total = queried_total = 0
+    for _ in range(60):
+        if scene.clearance((pose.x, pose.y), robot.radius) > 0.0:
+            scan = synthetic_scan(robot, scene, pose)
+            ranges = scan.ranges.copy()
+            hit = np.isfinite(ranges)
+            ranges[hit] += rng.uniform(-2.0 * noise, 2.0 * noise, int(hit.sum()))
+            memory.store((scan.replace(ranges=ranges),), noise)
+        motion = unicycle_step(Pose2D(), float(rng.uniform(-0.5, 1.0)), float(rng.uniform(-2.0, 2.0)), 0.05)
+        error_t, error_r = float(rng.uniform(0.0, 0.01)), float(rng.uniform(0.0, 0.02))
+        direction = rng.uniform(0.0, 2.0 * math.pi)
+        slip = Pose2D(error_t * math.cos(direction), error_t * math.sin(direction), error_r * rng.choice([-1.0, 1.0]))
+        memory.carry(motion.compose(slip), (error_t, error_r))   # what odometry says; the base really did `motion`
+        pose = pose.compose(motion)
+        centres = rng.uniform(-1.2, 1.2, (200, 2))
+        radius = float(rng.uniform(0.005, 0.03))
+        distance = np.hypot(centres[:, 0], centres[:, 1])
+        free = memory.certified(centres, distance, radius)
+        certified_total += int(free.sum())
+        queried_total += free.size
+        world = pose.to_parent(centres[free]) if free.any() else np.empty((0, 2))
+        for centre in world:
+            assert scene.clearance(tuple(centre), radius) >= -1e-9, (centre, radius)
+    return certified_total, queried_total
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_what_seen_free_certifies_is_free_with_odometry_erring_at_its_bound(seed):
+    _seen_free_walk(seed)
+
+
+def test_seen_free_certifies_space_on_those_walks():
+    counts = np.array([_seen_free_walk(seed) for seed in range(12)])
+    assert counts[:, 0].sum() > 0.05 * counts[:, 1].sum()
+
+
+def test_seen_free_travel_is_zero_until_the_space_behind_was_seen_and_grows_as_the_robot_drives_on():
+    robot = preset("m2wr")
+    scene = Scene.of(Segment((-0.45, -5.0), (-0.45, 5.0)))   # a wall just behind the start, never seen
+    memory = SeenFree(max_range=3.0)
+    inside, keep, extent = perception_inside(robot), robot.radius + 0.05, robot.radius + 0.05 + 0.5
+    travel = []
+    pose = Pose2D()
+    for _ in range(40):
+        scan = synthetic_scan(robot, scene, pose)
+        travel.append(memory.travel((scan,), inside, keep, extent))
+        memory.store((scan,), 0.0)
+        motion = Pose2D(0.025, 0.0, 0.0)
+        memory.carry(motion)
+        pose = pose.compose(motion)
+    assert travel[0] == 0.0 and travel[10] == 0.0
+    assert travel[-1] >= 0.4               # most of the grid's 0.5 m, once the robot has driven on
+    assert np.all(np.diff(travel) >= 0.0)
+    # Backing up by the travel the memory allowed never brings the body and margin past the robot's start line
+    # of sight (the lidar's plane at the start, x = 0.15 m): nothing behind it was ever seen.
+    for step, allowed in enumerate(travel):
+        assert 0.025 * step - allowed - keep >= 0.15 - robot.radius - 1e-9 or allowed == 0.0

@@ -86,6 +86,42 @@ def test_cbf_in_slack_never_reverses_into_the_unseen_rear():
     assert min(row["u"][0] for row in rows) >= 0.0
 
 
+# ------------------------------------------------------------------ the blind rear, seen free before
+
+
+def _blind_rear_episode(filter_name: str, base: str, give_velocity: bool, params: tuple[float, ...]) -> Episode:
+    """The m2wr, whose lidar looks ahead only, with a wall just behind its start (margin + 5 mm: never seen,
+    inside A6's start clearance on purpose, since the rear needs no assumption) and a pole beside its way."""
+    spec = preset("m2wr")
+    x = -(spec.radius + CBFSafetyFilter(spec, 0.05).margin + 0.005)
+    settings = {"time_constant": 0.05} if base == "lag" else {}
+    return Episode(robot="m2wr", filter=filter_name, base=base, dt=0.05, give_velocity=give_velocity,
+                   circles=((0.3, 0.5, 0.03),), segments=((x, -3.0, x, 3.0),), nominal="script", params=params,
+                   duration=7.0, noise=0.0, settings=settings)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+@pytest.mark.parametrize(("base", "give_velocity"), [("instant", False), ("ramp_limit", True), ("lag", True)])
+def test_a_robot_blind_behind_backs_only_into_space_it_saw_free(filter_name, base, give_velocity):
+    # Forward 1 m, then back at full speed, turning a little, for 4 s: the filter lets it back only within what its
+    # earlier scans saw free (the space behind the start never was), so it comes back towards its start and
+    # stops short of the wall. Before the seen-free memory it never backed at all.
+    outcome, rows = run(_blind_rear_episode(filter_name, base, give_velocity,
+                                            (3.0, 0.4, 0.0, 7.0, preset("m2wr").v_min, 0.2)), record=True)
+    assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
+    assert min(row["u"][0] for row in rows) < -0.05     # it does back
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_a_robot_blind_behind_never_backs_from_where_it_started(filter_name):
+    # Straight back from rest: nothing behind has been seen, so no command backs (the wall is 5 mm outside the
+    # margin).
+    outcome, rows = run(_blind_rear_episode(filter_name, "ramp_limit", True, (6.0, preset("m2wr").v_min, 0.0)),
+                        record=True)
+    assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
+    assert min(row["u"][0] for row in rows) >= 0.0
+
+
 # ------------------------------------------------------------------ hole 4: a base that lags
 
 

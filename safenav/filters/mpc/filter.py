@@ -478,7 +478,18 @@ class MPCSafetyFilter(SafetyFilter):
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
 
-    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    def _blind_cap(self, velocity: np.ndarray, travel: float, hold: int, periods: int) -> float:
+        """Largest speed [m/s] of every period's command towards a side no lidar sees: over ``periods`` periods,
+        after the first ``hold`` at up to the current speed (and the lag's drift), the path stays within
+        ``travel`` [m], the space earlier scans saw free that side (:attr:`View.blind_travel`)."""
+        if travel <= 0.0:
+            return 0.0
+        start = max(abs(float(velocity[0])), abs(float(self._last_command[0])))
+        left = travel - start * (hold * self.dt + self.model.time_constant)
+        return max(left, 0.0) / (periods * self.dt)
+
+    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1, travel: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray]:
         """Per-period command bounds ``(P, 2)``: limits, reachability, unknown space, stopped at the end.
 
         With late calls commands come in blocks of ``hold`` equal ones (one call period); each block
@@ -493,10 +504,14 @@ class MPCSafetyFilter(SafetyFilter):
         lower = np.minimum(robot.lower, reach_high)
         upper = np.maximum(robot.upper, reach_low)
         lower[0], upper[0] = robot.velocity_bounds(origin, self.dt * hold)
+        # Towards a side no lidar sees, only as far as earlier scans saw it free (never behind invalid beams).
+        cap = self._blind_cap(velocity, travel, hold, len(lower))
         if frontier.blocks_forward:
-            upper[:, 0] = np.minimum(upper[:, 0], np.maximum(0.0, reach_low[:, 0]))
+            allowed = 0.0 if frontier.gap_forward else cap
+            upper[:, 0] = np.minimum(upper[:, 0], np.maximum(allowed, reach_low[:, 0]))
         if frontier.blocks_backward:
-            lower[:, 0] = np.maximum(lower[:, 0], np.minimum(0.0, reach_high[:, 0]))
+            allowed = 0.0 if frontier.gap_backward else cap
+            lower[:, 0] = np.maximum(lower[:, 0], np.minimum(-allowed, reach_high[:, 0]))
         # Stopped at the end; a base too fast to stop within the horizon brakes at its limit instead.
         lower[-1] = np.minimum(0.0, reach_high[-1])
         upper[-1] = np.maximum(0.0, reach_low[-1])
@@ -549,7 +564,7 @@ class MPCSafetyFilter(SafetyFilter):
             guaranteed[:, self.n_body:] = -np.inf
             ignored = slice(None) if self.passage else remembered
             planned[ignored, self.n_body:] = floor[ignored, self.n_body:] = 0.0
-        lower, upper = self._bounds(velocity, view.frontier, hold)
+        lower, upper = self._bounds(velocity, view.frontier, hold, view.blind_travel)
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
                           self._layout_for(hold), view.frontier, min_barrier, body.clearance(view.points))
 
@@ -688,8 +703,9 @@ class MPCSafetyFilter(SafetyFilter):
             previous = self._commands
         self._commands = None
         frontier = view.frontier
-        if (frontier.blocks_forward and problem.lower[0, 0] > 0.0) or (
-                frontier.blocks_backward and problem.upper[0, 0] < 0.0):
+        cap = self._blind_cap(start, view.blind_travel, hold, len(problem.lower))
+        if (frontier.blocks_forward and problem.lower[0, 0] > (0.0 if frontier.gap_forward else cap)) or (
+                frontier.blocks_backward and problem.upper[0, 0] < (0.0 if frontier.gap_backward else -cap)):
             return self._brake(u_nom, velocity, FilterStatus.BRAKING, "unknown",
                                "cannot stop before moving towards unknown space within the acceleration limits; "
                                "braking at the limits", **details)
