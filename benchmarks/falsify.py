@@ -71,7 +71,7 @@ __all__ = [
 
 BASES = ("instant", "ramp", "ramp_limit", "lag")
 """Models of the base's velocity loop (see the module docstring)."""
-NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "script", "goal")
+NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "shuttle", "script", "goal")
 """Nominal policies an episode can use (``script`` replays a fixed command sequence, ``goal`` drives
 to a point with safenav's go-to-goal policy)."""
 SEARCHED_NOMINALS = NOMINALS[:-2]
@@ -261,7 +261,9 @@ def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, Laser
     ``arc`` (v, omega): constant. ``bang_bang`` (v, omega, period): omega changes sign every
     ``period`` [s]. ``aim_nearest`` (v, gain): full speed at the nearest scan point, turning
     towards it. ``spin_then_go`` (omega, t_spin, v): spin for ``t_spin`` [s], then drive.
-    ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``script`` (t_1, v_1, omega_1,
+    ``reverse`` (v, omega): like ``arc`` (``v`` may be negative). ``shuttle`` (v_1, omega_1, t, v_2, omega_2):
+    ``(v_1, omega_1)`` until ``t`` [s], then ``(v_2, omega_2)`` (forward, then back into space the lidar of a
+    robot blind behind saw only on the way out). ``script`` (t_1, v_1, omega_1,
     t_2, v_2, omega_2, ...): ``(v_i, omega_i)`` until ``t_i`` [s], the last one after. ``goal``
     (x, y): :class:`~safenav.reference.GoToGoal` to that point of the start frame, with the true pose.
     """
@@ -270,6 +272,9 @@ def nominal_policy(episode: Episode, robot: RobotSpec) -> Callable[[float, Laser
     if kind in ("arc", "reverse"):
         command = np.array([p[0], p[1]])
         return lambda t, scan, pose: command
+    if kind == "shuttle":
+        out, back = np.array([p[0], p[1]]), np.array([p[3], p[4]])
+        return lambda t, scan, pose: out if t < p[2] else back
     if kind == "bang_bang":
         return lambda t, scan, pose: np.array([p[0], p[1] * (1.0 if int(t / max(p[2], 1e-3)) % 2 == 0 else -1.0)])
     if kind == "script":
@@ -616,6 +621,9 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
         params = (spec.omega_max * (2.0 * u[13] - 1.0), 2.0 * u[14], spec.v_max * (0.2 + 0.8 * u[12]))
     elif nominal == "reverse":
         params = (spec.v_min * (0.2 + 0.8 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
+    elif nominal == "shuttle":
+        params = (spec.v_max * (0.3 + 0.7 * u[12]), 0.3 * spec.omega_max * (2.0 * u[13] - 1.0), 0.5 + 2.5 * u[14],
+                  spec.v_min * (0.5 + 0.5 * u[12]), spec.omega_max * (2.0 * u[13] - 1.0))
     else:
         raise ValueError(f"unknown nominal {nominal!r}")
     start_velocity = (0.0, 0.0)

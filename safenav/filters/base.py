@@ -323,10 +323,6 @@ class View(NamedTuple):
     """How many points follow those as the edge of what the lidars see (at ``range_max``,
     :func:`~safenav.filters.perception.horizon_points`, and along the edges of what obstacles hide,
     :func:`~safenav.filters.perception.shadow_points`); the remembered ones come last."""
-    blind_travel: float = 0.0
-    """How far [m] the base may translate towards a side no lidar sees (:attr:`frontier`'s ``forward`` or
-    ``backward``) with the body and the margin in space earlier scans saw free
-    (:meth:`~safenav.filters.perception.SeenFree.travel`); 0 without such a side or such scans."""
 
     @property
     def horizon(self) -> np.ndarray:
@@ -420,7 +416,7 @@ class SafetyFilter(abc.ABC):
             memory_range = self.reach + self.margin + stop + 1.0
         self.memory = PointMemory(_checks.positive("memory_range", memory_range), capacity) if capacity else None
         #: Earlier scans that say which space no lidar sees now was seen free: a robot with a side no lidar
-        #: sees translates towards it only that far (:attr:`View.blind_travel`). Kept with the memory.
+        #: sees translates towards it only that far (:meth:`seen_travel`). Kept with the memory.
         self.seen_free = SeenFree(float(memory_range)) if capacity else None
         # The seen-free grid reaches the body, the margin and a stop from full speed that way (forward, backward),
         # and at least SEEN_FREE_TRAVEL.
@@ -429,7 +425,8 @@ class SafetyFilter(abc.ABC):
                                                         side**2 / (2.0 * robot.a_max)), SEEN_FREE_TRAVEL)
             for side in (robot.v_max, max(-robot.v_min, 0.0)))
         self._inside = inscribed_radius(robot)
-        self._blind_travel = 0.0
+        self._travel_view: View | None = None     # the view seen_travel answers for, and its answer
+        self._travel: float | None = None
         self._last_time: float | None = None
         self._last_pose: Pose2D | None = None
         self._last_velocity: np.ndarray | None = None
@@ -517,7 +514,7 @@ class SafetyFilter(abc.ABC):
             self.memory.clear()
         if self.seen_free is not None:
             self.seen_free.clear()
-        self._blind_travel = 0.0
+        self._travel_view, self._travel = None, None
         self._last_time = None
         self._last_pose = None
         self._last_velocity = None
@@ -685,9 +682,30 @@ class SafetyFilter(abc.ABC):
 
     @property
     def blind_travel(self) -> float:
-        """How far [m] the last call let the base translate towards a side no lidar sees (:attr:`View.blind_travel`):
-        0 before the first call, for a robot without such a side, and until earlier scans saw that side free."""
-        return self._blind_travel
+        """How far [m] the base may translate towards a side no lidar sees, as of the last call
+        (:meth:`seen_travel` of its view): 0 before the first call, for a robot without such a side,
+        without a memory, and until earlier scans saw that side free."""
+        return self.seen_travel(self._travel_view) if self._travel_view is not None else 0.0
+
+    def seen_travel(self, view: View) -> float:
+        """How far [m] the base may translate towards the side no lidar sees in ``view`` (its frontier's
+        ``forward`` or ``backward``) with the body and the margin in space earlier scans saw free
+        (:meth:`~safenav.filters.perception.SeenFree.travel`); 0 without such a side or such scans.
+
+        Computed at most once per call, and only when asked: a filter asks when its command box lets the
+        base move that way.
+        """
+        if view is not self._travel_view:
+            self._travel_view, self._travel = view, None
+        if self._travel is None:
+            frontier = view.frontier
+            travel = 0.0
+            if (frontier.forward or frontier.backward) and self.seen_free is not None:
+                extent = max(self._seen_free_extent[0] if frontier.forward else 0.0,
+                             self._seen_free_extent[1] if frontier.backward else 0.0)
+                travel = self.seen_free.travel(view.scans, self._inside, self.body.reach + self.margin, extent)
+            self._travel = travel
+        return self._travel
 
     def remembered_points(self, *, velocity: Any = None, pose: Pose2D | Sequence[float] | None = None,
                           now: float | None = None) -> np.ndarray:
@@ -871,14 +889,8 @@ class SafetyFilter(abc.ABC):
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
-        travel = 0.0
-        if (frontier.forward or frontier.backward) and self.seen_free is not None:
-            extent = max(self._seen_free_extent[0] if frontier.forward else 0.0,
-                         self._seen_free_extent[1] if frontier.backward else 0.0)
-            travel = self.seen_free.travel(scans, self._inside, self.body.reach + self.margin, extent)
-        self._blind_travel = travel
         if self.memory is None:
-            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0], travel)
+            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0])
         if frontier.complete:
             # Every direction round the body is seen now: a remembered point is either seen again or
             # occluded, and an occluded point cannot be the first to come within the margin.
@@ -889,7 +901,7 @@ class SafetyFilter(abc.ABC):
         self._recalled = (recalled, uncertainty)
         points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
         return View(scans, points, np.concatenate((np.zeros(seen.shape[0]), uncertainty)), current.shape[0],
-                    frontier, horizon.shape[0], travel)
+                    frontier, horizon.shape[0])
 
     @staticmethod
     def _told_horizon(result: FilterResult, view: View) -> FilterResult:

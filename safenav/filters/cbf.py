@@ -227,7 +227,7 @@ class _Problem(NamedTuple):
     velocity: np.ndarray | None
     limits: tuple[np.ndarray, np.ndarray]   # the command's box (velocity limits and reachability)
     clearance: float            # distance from the body to the nearest point [m]
-    blind_speed: float          # largest speed towards a side no lidar sees [m/s] (View.blind_travel)
+    blind_speed: float          # largest speed towards a side no lidar sees [m/s] (seen_travel)
 
 
 class CBFSafetyFilter(SafetyFilter):
@@ -280,7 +280,8 @@ class CBFSafetyFilter(SafetyFilter):
     written for every mean velocity a base between the current velocity and the command can
     have (:func:`~safenav.filters.rows.ramp_corners`); ``gap`` (no part of the outline moves
     towards a run of invalid beams) and ``blind`` (no translation towards a side no lidar
-    sees); and the command box (velocity limits, reachable within one period). Only the
+    sees, beyond what earlier scans saw free there: :meth:`seen_travel`); and the command box
+    (velocity limits, reachable within one period). Only the
     obstacle families (``barrier``, ``braking``, ``sweep``) are *soft*: when no command
     satisfies every row, one slack relaxes them in tiers (:data:`SLACK_TIERS`: the rows of
     remembered points located worse than the margin; then those of points already inside the
@@ -491,20 +492,26 @@ class CBFSafetyFilter(SafetyFilter):
                 obstacle = families.ramp_corners(obstacle, velocity, lag_fraction(period, time_constant), self.gamma,
                                                  box=(z_lower, z_upper), reduce=cut)
         frontier = view.frontier
+        blind_speed = 0.0
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, self.body.reach)
-            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward,
-                                                           self._blind_speed(view.blind_travel, reaction)))
+            blind_speed = self._blind_speed(view, (lower, upper), reaction)
+            hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward, blind_speed))
             rows = families.stack(obstacle, hard)
         else:
             rows = obstacle
         return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
-                        clearance, self._blind_speed(view.blind_travel, reaction))
+                        clearance, blind_speed)
 
-    def _blind_speed(self, travel: float, reaction: float) -> float:
-        """Largest speed [m/s] towards a side no lidar sees: the base stops within ``travel`` [m], the space
-        earlier scans saw free that side (:attr:`View.blind_travel`), after ``reaction`` [s] at that speed."""
+    def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], reaction: float) -> float:
+        """Largest speed [m/s] towards a side no lidar sees: the base stops within the space earlier scans saw
+        free that side (:meth:`seen_travel`), after ``reaction`` [s] at that speed. Asked only when the command
+        ``box`` reaches that way (a base driving away from it faster than one period's braking needs none)."""
+        frontier, (lower, upper) = view.frontier, box
+        if not ((frontier.backward and lower[0] < 0.0) or (frontier.forward and upper[0] > 0.0)):
+            return 0.0
+        travel = self.seen_travel(view)
         if travel <= 0.0:
             return 0.0
         a_max = self.robot.a_max

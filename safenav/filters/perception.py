@@ -473,14 +473,14 @@ class PointMemory:
 
 
 #: Spacing of the grid on which the space no lidar sees now is checked against earlier scans [m].
-SEEN_FREE_SPACING = 0.025
+SEEN_FREE_SPACING = 0.04
 #: How many earlier scans :class:`SeenFree` keeps (the oldest go first).
 SEEN_FREE_SCANS = 12
 #: How far the base moves [m], or turns [rad], between two scans :class:`SeenFree` keeps.
 SEEN_FREE_STEP = (0.1, math.radians(20.0))
 #: Travel [m] towards a side no lidar sees that the seen-free grid covers at least (more for a robot that needs
 #: more to stop from full speed).
-SEEN_FREE_TRAVEL = 0.3
+SEEN_FREE_TRAVEL = 0.2
 #: Half-widths [beams] of the windows over which a kept scan's smallest reading is precomputed.
 _WINDOWS = np.array([1, 2, 4, 8, 16, 32, 64])
 
@@ -623,16 +623,22 @@ class SeenFree:
         """
         free = np.zeros(len(centres), dtype=bool)
         for (angle_min, increment, n_beams), (poses, error, minima, _) in self._groups.items():
+            # The centres in each kept lidar's frame.
             dx = centres[None, :, 0] - poses[:, 0:1]
             dy = centres[None, :, 1] - poses[:, 1:2]
-            reach = np.hypot(dx, dy)                                                     # (F, N)
+            cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
+            along, across = cos * dx + sin * dy, cos * dy - sin * dx
+            reach = np.sqrt(along * along + across * across)                             # (F, N)
             disk = radius + error[:, 0:1] + (distance[None, :] + radius + error[:, 2:3]) * error[:, 1:2]
-            bearing = np.arctan2(dy, dx) - poses[:, 2:3] - angle_min
-            index = np.floor(np.mod(bearing + 0.5 * increment, TWO_PI) / increment).astype(np.intp)
+            # The beam whose half-increment either side holds each bearing (beam b covers b -+ 1/2 increments).
+            offset = np.arctan2(across, along) - (math.remainder(angle_min, TWO_PI) - 0.5 * increment)
+            offset += TWO_PI * (offset < 0.0)
+            index = (offset * (1.0 / increment)).astype(np.intp)
             half = np.arcsin(np.minimum(disk / np.maximum(reach, 1e-12), 1.0))
             # The window holds every beam whose cell meets the disk's bearings, and one more either side
-            # (the beams that bracket its edge directions).
-            level = np.searchsorted(_WINDOWS, np.ceil(half / increment) + 2.0)
+            # (the beams that bracket its edge directions): half-width ceil(half / increment) + 2, rounded up
+            # to a power of two.
+            level = np.ceil(np.log2(np.ceil(half * (1.0 / increment)) + 2.0)).astype(np.intp)
             usable = (index < n_beams) & (disk < reach) & (level < len(_WINDOWS))
             seen = minima[np.arange(len(poses))[:, None], np.minimum(level, len(_WINDOWS) - 1),
                           np.minimum(index, n_beams - 1)]

@@ -303,7 +303,7 @@ def test_seen_free_travel_is_zero_until_the_space_behind_was_seen_and_grows_as_t
         memory.carry(motion)
         pose = pose.compose(motion)
     assert travel[0] == 0.0 and travel[10] == 0.0
-    assert travel[-1] >= 0.4               # most of the grid's 0.5 m, once the robot has driven on
+    assert travel[-1] >= 0.3       # most of the 0.5 m the grid reaches, once the robot has driven on
     assert np.all(np.diff(travel) >= 0.0)
     # Backing up by the travel the memory allowed never brings the body and margin past the robot's start line
     # of sight (the lidar's plane at the start, x = 0.15 m): nothing behind it was ever seen.

@@ -133,9 +133,11 @@ class MPCSafetyFilter(SafetyFilter):
     status use.
 
     **Unknown region and memory.** As the CBF filter (:mod:`safenav.filters.perception`):
-    outline samples facing a gap or a side no lidar sees forbid translating towards them over
-    the whole horizon; points that leave every field of view are remembered while within
-    reach and not contradicted, carried by odometry.
+    outline samples facing a gap forbid translating towards them over the whole horizon, and
+    facing a side no lidar sees beyond the speed that keeps the plan's whole path within the
+    space earlier scans saw free that side (:meth:`seen_travel`; 0 until they did); points
+    that leave every field of view are remembered while within reach and not contradicted,
+    carried by odometry.
 
     **Cost: the nominal's intent along the plan.** The nominal clipped to the velocity limits
     is held along the plan: ``sum_k c_k [w_v (v_k - v_nom)^2 + w_omega (omega_k -
@@ -478,17 +480,23 @@ class MPCSafetyFilter(SafetyFilter):
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
 
-    def _blind_cap(self, velocity: np.ndarray, travel: float, hold: int, periods: int) -> float:
+    def _blind_cap(self, velocity: np.ndarray, view: View, hold: int, periods: int) -> float:
         """Largest speed [m/s] of every period's command towards a side no lidar sees: over ``periods`` periods,
-        after the first ``hold`` at up to the current speed (and the lag's drift), the path stays within
-        ``travel`` [m], the space earlier scans saw free that side (:attr:`View.blind_travel`)."""
+        after the first ``hold`` at up to the current speed (and the lag's drift), the path stays within the
+        space earlier scans saw free that side (:meth:`seen_travel`). Asked only when the first period's box
+        reaches that way (a base driving away from it faster than one period's braking plans none)."""
+        frontier = view.frontier
+        lower, upper = self.robot.velocity_bounds(self.command_origin(velocity), self.dt * hold)
+        if not ((frontier.backward and lower[0] < 0.0) or (frontier.forward and upper[0] > 0.0)):
+            return 0.0
+        travel = self.seen_travel(view)
         if travel <= 0.0:
             return 0.0
         start = max(abs(float(velocity[0])), abs(float(self._last_command[0])))
         left = travel - start * (hold * self.dt + self.model.time_constant)
         return max(left, 0.0) / (periods * self.dt)
 
-    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1, travel: float = 0.0
+    def _bounds(self, velocity: np.ndarray, frontier: Frontier, hold: int = 1, cap: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Per-period command bounds ``(P, 2)``: limits, reachability, unknown space, stopped at the end.
 
@@ -504,8 +512,8 @@ class MPCSafetyFilter(SafetyFilter):
         lower = np.minimum(robot.lower, reach_high)
         upper = np.maximum(robot.upper, reach_low)
         lower[0], upper[0] = robot.velocity_bounds(origin, self.dt * hold)
-        # Towards a side no lidar sees, only as far as earlier scans saw it free (never behind invalid beams).
-        cap = self._blind_cap(velocity, travel, hold, len(lower))
+        # Towards a side no lidar sees at most at ``cap``, which keeps the plan within what earlier scans saw free
+        # there (never behind invalid beams).
         if frontier.blocks_forward:
             allowed = 0.0 if frontier.gap_forward else cap
             upper[:, 0] = np.minimum(upper[:, 0], np.maximum(allowed, reach_low[:, 0]))
@@ -564,7 +572,8 @@ class MPCSafetyFilter(SafetyFilter):
             guaranteed[:, self.n_body:] = -np.inf
             ignored = slice(None) if self.passage else remembered
             planned[ignored, self.n_body:] = floor[ignored, self.n_body:] = 0.0
-        lower, upper = self._bounds(velocity, view.frontier, hold, view.blind_travel)
+        lower, upper = self._bounds(velocity, view.frontier, hold,
+                                    self._blind_cap(velocity, view, hold, len(self._speed_ramps[0])))
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
                           self._layout_for(hold), view.frontier, min_barrier, body.clearance(view.points))
 
@@ -703,7 +712,7 @@ class MPCSafetyFilter(SafetyFilter):
             previous = self._commands
         self._commands = None
         frontier = view.frontier
-        cap = self._blind_cap(start, view.blind_travel, hold, len(problem.lower))
+        cap = self._blind_cap(start, view, hold, len(problem.lower))
         if (frontier.blocks_forward and problem.lower[0, 0] > (0.0 if frontier.gap_forward else cap)) or (
                 frontier.blocks_backward and problem.upper[0, 0] < (0.0 if frontier.gap_backward else -cap)):
             return self._brake(u_nom, velocity, FilterStatus.BRAKING, "unknown",
