@@ -427,6 +427,7 @@ class SafetyFilter(abc.ABC):
         self._inside = inscribed_radius(robot)
         self._travel_view: View | None = None     # the view seen_travel answers for, and its answer
         self._travel: float | None = None
+        self._last_view: View | None = None       # the last call's view
         self._last_time: float | None = None
         self._last_pose: Pose2D | None = None
         self._last_velocity: np.ndarray | None = None
@@ -514,7 +515,7 @@ class SafetyFilter(abc.ABC):
             self.memory.clear()
         if self.seen_free is not None:
             self.seen_free.clear()
-        self._travel_view, self._travel = None, None
+        self._travel_view, self._travel, self._last_view = None, None, None
         self._last_time = None
         self._last_pose = None
         self._last_velocity = None
@@ -685,7 +686,7 @@ class SafetyFilter(abc.ABC):
         """How far [m] the base may translate towards a side no lidar sees, as of the last call
         (:meth:`seen_travel` of its view): 0 before the first call, for a robot without such a side,
         without a memory, and until earlier scans saw that side free."""
-        return self.seen_travel(self._travel_view) if self._travel_view is not None else 0.0
+        return self.seen_travel(self._last_view) if self._last_view is not None else 0.0
 
     def seen_travel(self, view: View) -> float:
         """How far [m] the base may translate towards the side no lidar sees in ``view`` (its frontier's
@@ -919,6 +920,7 @@ class SafetyFilter(abc.ABC):
         return _replace(result, reason=told, message=message)
 
     def _remember(self, view: View) -> None:
+        self._last_view = view
         if self.memory is not None:
             recalled, uncertainty = self._recalled
             self.memory.store(view.points[: view.n_current], recalled, uncertainty)

@@ -541,3 +541,26 @@ def test_standing_before_a_hard_turn_of_the_nominal_waits_for_the_filters_deadlo
         escape = Escape(CBFSafetyFilter(robot, 0.05))
         step = next(step for step in range(60) if escape.filter(nominal, scan).escape)
         assert step == expected, (nominal, step)
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_the_escape_counts_a_rear_no_lidar_sees_as_free_only_once_earlier_scans_saw_it_free(make):
+    # The m2wr's lidar looks ahead only: at the start nothing behind has been seen, so the escape may not back
+    # out; once the robot has driven a metre down a corridor its earlier scans saw the space behind free, and the
+    # wrapped filter lets it back that far (blind_travel), so the escape may.
+    robot = preset("m2wr")
+    escape = Escape(make(robot, 0.05))
+    scene = Scene.of(Segment((-2.0, 0.8), (6.0, 0.8)), Segment((-2.0, -0.8), (6.0, -0.8)))
+    keep = robot.radius + escape.margin + escape.config.follow_distance
+    pose, velocity = Pose2D(), np.zeros(2)
+    scan = synthetic_scan(robot, scene, pose)
+    escape.filter((0.0, 0.0), scan, velocity=velocity)
+    assert escape.inner.blind_travel == 0.0 and not escape._rear_free((scan,), keep)
+    for _ in range(80):
+        scan = synthetic_scan(robot, scene, pose)
+        velocity = escape.filter((0.3, 0.0), scan, velocity=velocity).u
+        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), 0.05)
+    escape.filter((0.0, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
+    scan = synthetic_scan(robot, scene, pose)
+    assert escape.inner.blind_travel >= escape.config.follow_distance
+    assert escape._rear_free((scan,), keep)
