@@ -496,7 +496,7 @@ class CBFSafetyFilter(SafetyFilter):
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, self.body.reach)
-            blind_speed = self._blind_speed(view, (lower, upper), reaction)
+            blind_speed = self._blind_speed(view, (lower, upper), velocity, period, reaction)
             hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward, blind_speed))
             rows = families.stack(obstacle, hard)
         else:
@@ -504,14 +504,19 @@ class CBFSafetyFilter(SafetyFilter):
         return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
                         clearance, blind_speed)
 
-    def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], reaction: float) -> float:
+    def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], velocity: np.ndarray | None,
+                     period: float, reaction: float) -> float:
         """Largest speed [m/s] towards a side no lidar sees: the base stops within the space earlier scans saw
-        free that side (:meth:`seen_travel`), after ``reaction`` [s] at that speed. Asked only when the command
-        ``box`` reaches that way (a base driving away from it faster than one period's braking needs none)."""
+        free that side (:meth:`seen_travel`), after ``reaction`` [s] at that speed, less what the period may
+        still carry it the other way first (at most the current speed, ``velocity`` or the last command, for
+        ``period`` [s]). Asked only when the command ``box`` reaches that way (a base driving away from it
+        faster than one period's braking needs none)."""
         frontier, (lower, upper) = view.frontier, box
         if not ((frontier.backward and lower[0] < 0.0) or (frontier.forward and upper[0] > 0.0)):
             return 0.0
-        travel = self.seen_travel(view)
+        origin = self.command_origin(velocity)
+        away = 0.0 if origin is None else abs(float(origin[0]))
+        travel = self.seen_travel(view) - away * period
         if travel <= 0.0:
             return 0.0
         a_max = self.robot.a_max

@@ -480,12 +480,16 @@ class MPCSafetyFilter(SafetyFilter):
         return float(0.5 * self.dt * np.sum(np.maximum(previous, speeds) + speeds)) + \
             self.model.time_constant * max(start, self.speed)
 
-    def _blind_cap(self, velocity: np.ndarray, view: View, hold: int, periods: int) -> float:
-        """Largest speed [m/s] of every period's command towards a side no lidar sees: over ``periods`` periods,
-        after the first ``hold`` at up to the current speed (and the lag's drift), the path stays within the
-        space earlier scans saw free that side (:meth:`seen_travel`). Asked only when the first period's box
-        reaches that way (a base driving away from it faster than one period's braking plans none)."""
+    def _blind_cap(self, u_nom: np.ndarray, velocity: np.ndarray, view: View, hold: int, periods: int) -> float:
+        """Largest speed [m/s] of every period's command, either way, in a plan that translates towards a side no
+        lidar sees: the plan's whole path, the first ``hold`` periods at up to the current speed (and the
+        lag's drift) and ``periods`` more at this speed, stays within the space earlier scans saw free that side
+        (:meth:`seen_travel`), so that every pose of the plan (forward ones too: a plan that went forward and
+        then back would leave the ball the free space was checked in) keeps the body there. Zero (no such
+        translation) unless ``u_nom`` asks to move that way and the first period's box reaches it."""
         frontier = view.frontier
+        if not ((frontier.backward and u_nom[0] < 0.0) or (frontier.forward and u_nom[0] > 0.0)):
+            return 0.0
         lower, upper = self.robot.velocity_bounds(self.command_origin(velocity), self.dt * hold)
         if not ((frontier.backward and lower[0] < 0.0) or (frontier.forward and upper[0] > 0.0)):
             return 0.0
@@ -512,14 +516,17 @@ class MPCSafetyFilter(SafetyFilter):
         lower = np.minimum(robot.lower, reach_high)
         upper = np.maximum(robot.upper, reach_low)
         lower[0], upper[0] = robot.velocity_bounds(origin, self.dt * hold)
-        # Towards a side no lidar sees at most at ``cap``, which keeps the plan within what earlier scans saw free
-        # there (never behind invalid beams).
-        if frontier.blocks_forward:
-            allowed = 0.0 if frontier.gap_forward else cap
-            upper[:, 0] = np.minimum(upper[:, 0], np.maximum(allowed, reach_low[:, 0]))
-        if frontier.blocks_backward:
-            allowed = 0.0 if frontier.gap_backward else cap
-            lower[:, 0] = np.maximum(lower[:, 0], np.minimum(-allowed, reach_high[:, 0]))
+        # Towards a side no lidar sees at most at ``cap``, and then at most at ``cap`` either way: the plan's whole
+        # path stays within what earlier scans saw free there (never behind invalid beams).
+        if cap > 0.0 and (frontier.forward or frontier.backward):
+            upper[:, 0] = np.minimum(upper[:, 0], np.maximum(0.0 if frontier.gap_forward else cap, reach_low[:, 0]))
+            lower[:, 0] = np.maximum(lower[:, 0], np.minimum(-0.0 if frontier.gap_backward else -cap,
+                                                             reach_high[:, 0]))
+        else:
+            if frontier.blocks_forward:
+                upper[:, 0] = np.minimum(upper[:, 0], np.maximum(0.0, reach_low[:, 0]))
+            if frontier.blocks_backward:
+                lower[:, 0] = np.maximum(lower[:, 0], np.minimum(0.0, reach_high[:, 0]))
         # Stopped at the end; a base too fast to stop within the horizon brakes at its limit instead.
         lower[-1] = np.minimum(0.0, reach_high[-1])
         upper[-1] = np.maximum(0.0, reach_low[-1])
@@ -573,7 +580,7 @@ class MPCSafetyFilter(SafetyFilter):
             ignored = slice(None) if self.passage else remembered
             planned[ignored, self.n_body:] = floor[ignored, self.n_body:] = 0.0
         lower, upper = self._bounds(velocity, view.frontier, hold,
-                                    self._blind_cap(velocity, view, hold, len(self._speed_ramps[0])))
+                                    self._blind_cap(u_nom, velocity, view, hold, len(self._speed_ramps[0])))
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
                           self._layout_for(hold), view.frontier, min_barrier, body.clearance(view.points))
 
@@ -712,7 +719,7 @@ class MPCSafetyFilter(SafetyFilter):
             previous = self._commands
         self._commands = None
         frontier = view.frontier
-        cap = self._blind_cap(start, view, hold, len(problem.lower))
+        cap = self._blind_cap(u_nom, start, view, hold, len(problem.lower))
         if (frontier.blocks_forward and problem.lower[0, 0] > (0.0 if frontier.gap_forward else cap)) or (
                 frontier.blocks_backward and problem.upper[0, 0] < (0.0 if frontier.gap_backward else -cap)):
             return self._brake(u_nom, velocity, FilterStatus.BRAKING, "unknown",
