@@ -36,6 +36,7 @@ from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters.body import BodyModel, inscribed_radius
 from safenav.filters.perception import (
+    SEEN_FREE_MAX_TRAVEL,
     SEEN_FREE_TRAVEL,
     SHADOW_SPACING,
     Frontier,
@@ -419,10 +420,11 @@ class SafetyFilter(abc.ABC):
         #: sees translates towards it only that far (:meth:`seen_travel`). Kept with the memory.
         self.seen_free = SeenFree(float(memory_range)) if capacity else None
         # The seen-free grid reaches the body, the margin and a stop from full speed that way (forward, backward),
-        # and at least SEEN_FREE_TRAVEL.
+        # at least SEEN_FREE_TRAVEL and at most SEEN_FREE_MAX_TRAVEL (a robot that needs more backs slower).
         self._seen_free_extent = tuple(
-            self.body.reach + self.margin + max(1.25 * (side * (self.dt + self.time_constant) +
-                                                        side**2 / (2.0 * robot.a_max)), SEEN_FREE_TRAVEL)
+            self.body.reach + self.margin + min(max(1.25 * (side * (self.dt + self.time_constant) +
+                                                            side**2 / (2.0 * robot.a_max)), SEEN_FREE_TRAVEL),
+                                                SEEN_FREE_MAX_TRAVEL)
             for side in (robot.v_max, max(-robot.v_min, 0.0)))
         self._inside = inscribed_radius(robot)
         self._travel_view: View | None = None     # the view seen_travel answers for, and its answer

@@ -481,6 +481,8 @@ SEEN_FREE_STEP = (0.1, math.radians(20.0))
 #: Travel [m] towards a side no lidar sees that the seen-free grid covers at least (more for a robot that needs
 #: more to stop from full speed).
 SEEN_FREE_TRAVEL = 0.2
+#: ... and at most (the grid's cells grow with its square; a robot that needs more to stop backs slower) [m].
+SEEN_FREE_MAX_TRAVEL = 1.0
 #: Half-widths [beams] of the windows over which a kept scan's smallest reading is precomputed.
 _WINDOWS = np.array([1, 2, 4, 8, 16, 32, 64])
 
