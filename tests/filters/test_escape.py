@@ -564,3 +564,22 @@ def test_the_escape_counts_a_rear_no_lidar_sees_as_free_only_once_earlier_scans_
     scan = synthetic_scan(robot, scene, pose)
     assert escape.inner.blind_travel >= escape.config.follow_distance
     assert escape._rear_free((scan,), keep)
+
+
+def test_the_side_comes_from_a_door_only_the_narrow_body_fits_and_never_from_a_rounding_errors_sign():
+    # The m2wr before a long wall whose only door (1 m left) fits the filter's narrow body, not its disk: the side
+    # is towards the door whichever way the nominal turns by a hair; before a wall without a door the side does
+    # not follow the sign of a rounding error (an escape that went right along a 16 m wall, away from the door,
+    # once a plan's heading came out +0.0 instead of -0.0).
+    robot = preset("m2wr")
+    half = CBFSafetyFilter(robot, 0.05).narrow_half_width + 0.02
+    door = Scene.of(Segment((1.5, -8.0), (1.5, 1.0 - half)), Segment((1.5, 1.0 + half), (1.5, 8.0)))
+    plain = Scene.of(Segment((1.5, -8.0), (1.5, 8.0)))
+    for scene, expected in ((door, [1, 1]), (plain, None)):
+        sides = []
+        for turn in (1e-15, -1e-15):
+            escape = Escape(CBFSafetyFilter(robot, 0.05, narrow_body="cover"))
+            scan = synthetic_scan(robot, scene, Pose2D())
+            escape._start(np.array([0.5, turn]), (scan,), scan.points(), None)
+            sides.append(escape._side)
+        assert sides == (expected or [sides[0], sides[0]])
