@@ -564,8 +564,9 @@ class SeenFree:
     def clear(self) -> None:
         """Forget every kept scan."""
         # Per beam layout (angle_min, increment, n_beams): lidar poses in the current base frame (F, 3), the
-        # odometry error bound accumulated since each was kept and the base's path length since then (F, 3),
-        # the windows' smallest readings (F, W, n), and the order they were kept in (F,).
+        # odometry error bound accumulated since each was kept (translation, turn) and the turns' lever beyond
+        # the current base, sum of each carry's turn times the base's path since that carry (F, 3), the
+        # windows' smallest readings (F, W, n), and the order they were kept in (F,).
         self._groups: dict[tuple[float, float, int], list[np.ndarray]] = {}
         self._since: Pose2D | None = None      # the base frame in the frame of the last kept scan
         self._count = 0
@@ -581,8 +582,8 @@ class SeenFree:
             dx, dy = poses[:, 0] - motion.x, poses[:, 1] - motion.y
             poses[:, 0], poses[:, 1] = cos * dx + sin * dy, -sin * dx + cos * dy
             poses[:, 2] -= motion.yaw
+            error[:, 2] += error[:, 1] * math.hypot(motion.x, motion.y)   # earlier turns' centres fall behind
             error[:, :2] += uncertainty_rate
-            error[:, 2] += math.hypot(motion.x, motion.y)
 
     def store(self, scans: tuple[LaserScan, ...], noise: float) -> None:
         """Keep ``scans`` (base frame, through their mounts) when the base has moved or turned far enough
@@ -619,9 +620,9 @@ class SeenFree:
         origin) some kept scan saw free, with the odometry's error bound added to the radius.
 
         Each carry's error (``e_translation``, ``e_rotation``) is a translation and a turn about the base
-        origin of that moment, which lies within the base's path length since the scan was kept of the base
-        origin now: a point ``d`` from the base is off by at most ``sum(e_translation) + (d + path)
-        sum(e_rotation)``.
+        origin of that moment, which lies within the base's path length since then of the base origin now: a
+        point ``d`` from the base is off by at most ``sum(e_translation) + d sum(e_rotation) + sum(e_rotation
+        path since)``.
         """
         free = np.zeros(len(centres), dtype=bool)
         for (angle_min, increment, n_beams), (poses, error, minima, _) in self._groups.items():
@@ -631,7 +632,7 @@ class SeenFree:
             cos, sin = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
             along, across = cos * dx + sin * dy, cos * dy - sin * dx
             reach = np.sqrt(along * along + across * across)                             # (F, N)
-            disk = radius + error[:, 0:1] + (distance[None, :] + radius + error[:, 2:3]) * error[:, 1:2]
+            disk = radius + error[:, 0:1] + (distance[None, :] + radius) * error[:, 1:2] + error[:, 2:3]
             # The beam whose half-increment either side holds each bearing (beam b covers b -+ 1/2 increments).
             offset = np.arctan2(across, along) - (math.remainder(angle_min, TWO_PI) - 0.5 * increment)
             offset += TWO_PI * (offset < 0.0)

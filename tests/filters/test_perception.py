@@ -309,3 +309,28 @@ def test_seen_free_travel_is_zero_until_the_space_behind_was_seen_and_grows_as_t
     # of sight (the lidar's plane at the start, x = 0.15 m): nothing behind it was ever seen.
     for step, allowed in enumerate(travel):
         assert 0.025 * step - allowed - keep >= 0.15 - robot.radius - 1e-9 or allowed == 0.0
+
+
+@pytest.mark.parametrize("turn", [0.05, -0.05])
+def test_a_turn_error_long_ago_counts_with_the_path_driven_since(turn):
+    # One scan kept, a wall beside the path; the odometry errs by a turn about the base in the first period only
+    # (within its stated bound), then the robot drives 1.5 m on exactly. About where the base is now the kept scan
+    # is off by 1.5 m times the turn, not by the distance from the base now times it: disks the scan did not see
+    # free (inside the wall) must not be certified.
+    robot = preset("m2wr")
+    scene = Scene.of(Segment((-1.0, 0.5), (4.0, 0.5)), Segment((-1.0, -0.5), (4.0, -0.5)))
+    memory = SeenFree(max_range=5.0, capacity=1, step=(100.0, 100.0))
+    memory.store((synthetic_scan(robot, scene, Pose2D()),), 0.0)
+    step = Pose2D(0.05, 0.0, 0.0)
+    memory.carry(step.compose(Pose2D(0.0, 0.0, turn)), (0.0, abs(turn)))     # the base really did `step`
+    pose = step
+    for _ in range(29):
+        memory.carry(step)
+        pose = pose.compose(step)
+    xs, ys = np.meshgrid(np.linspace(-0.6, 0.6, 25), np.linspace(-0.6, 0.6, 49))
+    centres = np.column_stack((xs.ravel(), ys.ravel()))
+    radius = 0.01
+    free = memory.certified(centres, np.hypot(centres[:, 0], centres[:, 1]), radius)
+    assert free.any()
+    for centre in pose.to_parent(centres[free]):
+        assert scene.clearance(tuple(centre), radius) >= -1e-9, centre
