@@ -415,8 +415,8 @@ class CBFSafetyFilter(SafetyFilter):
 
     # ------------------------------------------------------------------ constraints
 
-    def _constraints(self, view: View, velocity: np.ndarray | None, period: float, *, cut: bool = True
-                     ) -> _Problem:
+    def _constraints(self, view: View, velocity: np.ndarray | None, period: float, *, cut: bool = True,
+                     u_nom: np.ndarray | None = None) -> _Problem:
         """Every row of every family, from every point that can matter (every point with ``cut=False``)."""
         robot, body = self.robot, self._shape.body
         lower, upper = robot.velocity_bounds(self.command_origin(velocity), period if velocity is not None else None)
@@ -496,7 +496,7 @@ class CBFSafetyFilter(SafetyFilter):
         if frontier.points.shape[0] or frontier.forward or frontier.backward:
             # The unknown region is the perception body's outline (self.body), whatever body the rows use.
             gap = families.gap_rows(frontier.points, frontier.normals, self.side_tolerance, self.body.reach)
-            blind_speed = self._blind_speed(view, (lower, upper), velocity, period, reaction)
+            blind_speed = self._blind_speed(view, (lower, upper), velocity, period, reaction, u_nom)
             hard = families.stack(gap, families.blind_rows(frontier.forward, frontier.backward, blind_speed))
             rows = families.stack(obstacle, hard)
         else:
@@ -505,14 +505,16 @@ class CBFSafetyFilter(SafetyFilter):
                         clearance, blind_speed)
 
     def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], velocity: np.ndarray | None,
-                     period: float, reaction: float) -> float:
+                     period: float, reaction: float, u_nom: np.ndarray | None) -> float:
         """Largest speed [m/s] towards a side no lidar sees: the base stops within the space earlier scans saw
         free that side (:meth:`seen_travel`), after ``reaction`` [s] at that speed, less what the period may
         still carry it the other way first (at most the current speed, ``velocity`` or the last command, for
-        ``period`` [s]). Asked only when the command ``box`` reaches that way (a base driving away from it
-        faster than one period's braking needs none)."""
+        ``period`` [s]). Zero unless ``u_nom`` asks to move that way (the filter never moves towards a side no
+        lidar sees of its own accord) and the command ``box`` reaches it (a base driving away from it faster
+        than one period's braking needs none)."""
         frontier, (lower, upper) = view.frontier, box
-        if not ((frontier.backward and lower[0] < 0.0) or (frontier.forward and upper[0] > 0.0)):
+        if u_nom is None or not ((frontier.backward and u_nom[0] < 0.0 and lower[0] < 0.0) or
+                                 (frontier.forward and u_nom[0] > 0.0 and upper[0] > 0.0)):
             return 0.0
         origin = self.command_origin(velocity)
         away = 0.0 if origin is None else abs(float(origin[0]))
@@ -673,7 +675,8 @@ class CBFSafetyFilter(SafetyFilter):
         """The rows of every family for ``scan``, with their points and families (see :meth:`build_qp`).
 
         The auxiliary rows ``|v| <= t_v``, ``|omega| <= t_omega`` are not included; the point
-        indices refer to :meth:`points`.
+        indices refer to :meth:`points`. Without a nominal the ``blind`` rows forbid any translation
+        towards a side no lidar sees (:meth:`build_qp` gives those of its ``u_nom``).
         """
         view = self._inspected(scan)
         velocity = None if velocity is None else np.asarray(velocity, dtype=float)
@@ -718,7 +721,7 @@ class CBFSafetyFilter(SafetyFilter):
         u_nom = np.asarray(u_nom, dtype=float)
         view = self._inspected(scan)
         velocity = None if velocity is None else np.asarray(velocity, dtype=float)
-        problem = self._constraints(view, velocity, self.dt, cut=reduce)
+        problem = self._constraints(view, velocity, self.dt, cut=reduce, u_nom=u_nom)
         rows = problem.rows.take(self._prune(problem.rows, problem)) if reduce else problem.rows
         return self._qp(u_nom, rows, problem).problem()
 
@@ -781,7 +784,7 @@ class CBFSafetyFilter(SafetyFilter):
     def _filter_rows(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float
                      ) -> FilterResult:
         """The answer with the rows of the current look-ahead."""
-        problem = self._constraints(view, velocity, period)
+        problem = self._constraints(view, velocity, period, u_nom=u_nom)
         rows = problem.rows
         points = problem.points
         details: dict[str, Any] = dict(min_barrier=problem.min_barrier, clearance=problem.clearance)
