@@ -411,10 +411,11 @@ class SafetyFilter(abc.ABC):
         self._progressing = 0.0
         self._scale = (float(robot.upper[0]), float(robot.upper[1]))
         capacity = _checks.integer("memory_capacity", memory_capacity, low=0)
-        speed = max(robot.v_max, -robot.v_min)
-        stop = speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
+        def stopping(speed: float) -> float:
+            return speed * (self.dt + self.time_constant) + speed**2 / (2.0 * robot.a_max)
+
         if memory_range is None:
-            memory_range = self.reach + self.margin + stop + 1.0
+            memory_range = self.reach + self.margin + stopping(max(robot.v_max, -robot.v_min)) + 1.0
         self.memory = PointMemory(_checks.positive("memory_range", memory_range), capacity) if capacity else None
         #: Earlier scans that say which space no lidar sees now was seen free: a robot with a side no lidar
         #: sees translates towards it only that far (:meth:`seen_travel`). Kept with the memory.
@@ -422,9 +423,7 @@ class SafetyFilter(abc.ABC):
         # The seen-free grid reaches the body, the margin and a stop from full speed that way (forward, backward),
         # at least SEEN_FREE_TRAVEL and at most SEEN_FREE_MAX_TRAVEL (a robot that needs more backs slower).
         self._seen_free_extent = tuple(
-            self.body.reach + self.margin + min(max(1.25 * (side * (self.dt + self.time_constant) +
-                                                            side**2 / (2.0 * robot.a_max)), SEEN_FREE_TRAVEL),
-                                                SEEN_FREE_MAX_TRAVEL)
+            self.body.reach + self.margin + min(max(1.25 * stopping(side), SEEN_FREE_TRAVEL), SEEN_FREE_MAX_TRAVEL)
             for side in (robot.v_max, max(-robot.v_min, 0.0)))
         self._inside = inscribed_radius(robot)
         self._travel_view: View | None = None     # the view seen_travel answers for, and its answer

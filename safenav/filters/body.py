@@ -80,12 +80,10 @@ def inscribed_radius(robot: RobotSpec) -> float:
     robot, the distance to the nearest edge of a convex footprint (0 for a concave one)."""
     if robot.footprint is None:
         return float(robot.radius)
-    polygon = counter_clockwise(np.asarray(robot.footprint, dtype=float))
-    if not is_convex(polygon):
+    polygon = np.asarray(robot.footprint, dtype=float)
+    if not is_convex(counter_clockwise(polygon)):
         return 0.0
-    edge = np.roll(polygon, -1, axis=0) - polygon
-    depth = (edge[:, 0] * polygon[:, 1] - edge[:, 1] * polygon[:, 0]) / np.hypot(edge[:, 0], edge[:, 1])
-    return max(float(-depth.max()), 0.0) if np.all(depth <= 0.0) else 0.0
+    return max(-float(polygon_distance(polygon, np.zeros((1, 2)))[0]), 0.0)
 
 
 @dataclass(frozen=True, eq=False)

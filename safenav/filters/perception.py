@@ -594,10 +594,8 @@ class SeenFree:
         self._since = Pose2D()
         self._count += 1
         for scan in scans:
-            readings = scan.readings
-            seen = np.where(readings == _HIT, scan.ranges - 2.0 * noise,
-                            np.where(readings == _NO_RETURN, scan.range_max, -np.inf))
-            minima = _window_minima(seen, scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9)
+            wraps = scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9
+            minima = _window_minima(_seen_ranges(scan, 2.0 * noise), wraps)
             mount = scan.mount
             key = (scan.angle_min, scan.angle_increment, scan.n_beams)
             entry = [np.array([[mount.x, mount.y, mount.yaw]]), np.zeros((1, 3)), minima[None], np.array([self._count])]
@@ -739,12 +737,15 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> n
     offset = np.mod(np.arctan2(dy, dx) - mount.yaw - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
     index = np.floor(offset / increment + 0.5).astype(np.intp)
     inside = (index >= 0) & (index < scan.n_beams)
-    # per beam, the range up to which it shows space as seen: a hit's range, range_max for no return,
-    # -inf for a beam that says nothing (too close, invalid), so that no point passes the test below
+    return inside & (_seen_ranges(scan).take(index, mode="clip") >= np.hypot(dx, dy) - tolerance)
+
+
+def _seen_ranges(scan: LaserScan, shrink: float = 0.0) -> np.ndarray:
+    """Per beam, the range [m] up to which it shows space as seen: a hit's range less ``shrink`` [m], ``range_max``
+    for no return, ``-inf`` for a beam that says nothing (too close, invalid), so that no point passes a test
+    against it."""
     readings = scan.readings
-    seen = np.where(readings == _HIT, scan.ranges,
-                    np.where(readings == _NO_RETURN, scan.range_max, -np.inf))
-    return inside & (seen.take(index, mode="clip") >= np.hypot(dx, dy) - tolerance)
+    return np.where(readings == _HIT, scan.ranges - shrink, np.where(readings == _NO_RETURN, scan.range_max, -np.inf))
 
 
 def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int,

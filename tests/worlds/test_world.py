@@ -75,6 +75,14 @@ def test_footprint_clearance_is_exact_apart_and_minus_the_penetration_depth_in_o
     assert world.footprint_clearance(np.array([pose]), M2WR_BOX)[0] == pytest.approx(expected, abs=1e-12)
 
 
+def _footprint_worlds(n_seeds: int):
+    """``(robot, footprint, world)`` for the presets with a footprint and ``n_seeds`` random worlds each."""
+    for name in ("m2wr", "rosbot"):
+        robot = preset(name)
+        for seed in range(n_seeds):
+            yield robot, np.asarray(robot.footprint), random_world(seed=seed, robot=robot)
+
+
 def test_footprint_clearance_of_a_period_is_the_minimum_over_every_obstacle_alone():
     """The simulator asks for a period's five poses at once, and only the obstacles that can be the nearest are
     evaluated (circumscribed circles): the values are those of every obstacle evaluated alone, bit for bit,
@@ -82,24 +90,20 @@ def test_footprint_clearance_of_a_period_is_the_minimum_over_every_obstacle_alon
     from safenav.worlds.shapes import box_sides, placed_polygons, polygon_gaps
 
     rng = np.random.default_rng(5)
-    for name in ("m2wr", "rosbot"):
-        robot = preset(name)
-        footprint = np.asarray(robot.footprint)
-        for seed in range(2):
-            world = random_world(seed=seed, robot=robot)
-            boxes, circles = world._boxes, world._circles
-            overlapping = 0
-            for _ in range(150):
-                start = np.array([*rng.uniform(-5.0, 5.0, 2), rng.uniform(-np.pi, np.pi)])
-                poses = start + np.cumsum(rng.uniform(-0.02, 0.02, (5, 3)), axis=0)
-                polygons = placed_polygons(poses, footprint)
-                alone = [polygon_gaps(polygons, box_sides(boxes[k:k + 1]), np.empty((0, 3))) for k in range(len(boxes))]
-                alone += [polygon_gaps(polygons, box_sides(np.empty((0, 6))), circles[k:k + 1])
-                          for k in range(len(circles))]
-                expected = np.min(alone, axis=0)
-                np.testing.assert_array_equal(world.footprint_clearance(poses, footprint), expected)
-                overlapping += int(np.any(expected < 0.0))
-            assert overlapping > 5
+    for _robot, footprint, world in _footprint_worlds(2):
+        boxes, circles = world._boxes, world._circles
+        overlapping = 0
+        for _ in range(150):
+            start = np.array([*rng.uniform(-5.0, 5.0, 2), rng.uniform(-np.pi, np.pi)])
+            poses = start + np.cumsum(rng.uniform(-0.02, 0.02, (5, 3)), axis=0)
+            polygons = placed_polygons(poses, footprint)
+            alone = [polygon_gaps(polygons, box_sides(boxes[k:k + 1]), np.empty((0, 3))) for k in range(len(boxes))]
+            alone += [polygon_gaps(polygons, box_sides(np.empty((0, 6))), circles[k:k + 1])
+                      for k in range(len(circles))]
+            expected = np.min(alone, axis=0)
+            np.testing.assert_array_equal(world.footprint_clearance(poses, footprint), expected)
+            overlapping += int(np.any(expected < 0.0))
+        assert overlapping > 5
 
 
 def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_disks():
@@ -108,16 +112,12 @@ def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_d
     from benchmarks.falsify import _footprint_clearances
 
     rng = np.random.default_rng(11)
-    for name in ("m2wr", "rosbot"):
-        robot = preset(name)
-        footprint = np.asarray(robot.footprint)
-        for seed in range(3):
-            world = random_world(seed=seed, robot=robot)
-            poses = np.column_stack((rng.uniform(-5.0, 5.0, (1500, 2)), rng.uniform(-np.pi, np.pi, 1500)))
-            ours = world.footprint_clearance(poses, footprint)
-            theirs = _footprint_clearances(world.scene(), poses, footprint)
-            apart = (ours > 0.0) & (theirs > 0.0)
-            assert apart.sum() > 900
-            np.testing.assert_allclose(ours[apart], theirs[apart], atol=1e-12)
-            assert not np.any((ours > 0.0) & (theirs <= 0.0))
-            assert np.all(ours >= world.signed_distance(poses[:, :2]) - robot.radius - 1e-12)
+    for robot, footprint, world in _footprint_worlds(3):
+        poses = np.column_stack((rng.uniform(-5.0, 5.0, (1500, 2)), rng.uniform(-np.pi, np.pi, 1500)))
+        ours = world.footprint_clearance(poses, footprint)
+        theirs = _footprint_clearances(world.scene(), poses, footprint)
+        apart = (ours > 0.0) & (theirs > 0.0)
+        assert apart.sum() > 900
+        np.testing.assert_allclose(ours[apart], theirs[apart], atol=1e-12)
+        assert not np.any((ours > 0.0) & (theirs <= 0.0))
+        assert np.all(ours >= world.signed_distance(poses[:, :2]) - robot.radius - 1e-12)
