@@ -25,10 +25,14 @@ nominal by an escape command until the nominal's way is clear again:
    the sense of the turn from the obstacle's bearing to the opening's (facing a wall obliquely, a
    door up the wall may lie right of the heading and still be reached by going left); without an
    opening, the side with more free space, or the side the nominal turns to (by more than
-   :data:`SIDE_DEADBAND` of ``omega_max``: not the sign of a rounding error), else left.
+   :data:`SIDE_DEADBAND` of ``omega_max``: not the sign of a rounding error), else left. An opening
+   that leads back to a place where a deadlock began (5.) does not choose the side: the second
+   deadlock beside a box went round it towards its far end, back to where the first began.
 3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
-   with it on the other side (its nearest current or remembered point: a lidar that does not look
-   back loses an obstacle's end as the robot goes round it), holding ``follow_distance`` beyond the
+   with it on the other side (its nearest current or remembered point there, or ahead within the
+   following distance on either side: the obstacle faced obliquely at the start is still on the
+   chosen side; a lidar that does not look back loses an obstacle's end as the robot goes round
+   it), holding ``follow_distance`` beyond the
    margin; turn in place towards the chosen side when something is ahead, or when the filter blocks
    the following (for one period while the robot still moves, creeping or turning; when it stands
    still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one
@@ -57,17 +61,20 @@ nominal by an escape command until the nominal's way is clear again:
    while it turns in place (3. and the gap's turns): the CBF's control point ahead of the body swings sideways
    in a turn, and between two obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
-   the robot was heading when the deadlock began, tracked by the odometry pose when the caller
+   the nominal was heading for when the deadlock began, the chord of its arc over one second, not
+   the robot's heading, which the stall may have swung; tracked by the odometry pose when the caller
    gives one, else by integrating the commands sent, as in a bug algorithm), or in the direction
    of the nominal's own arc over one second when it drives forward; or after ``max_time`` (the
    next deadlock then tries the other side). Clear means for
-   ``clear_distance``, or, when the corridor passes a place where a deadlock began (within twice
-   ``clear_half_width`` of its centre line; the last :data:`SPOTS` such places within
+   ``clear_distance``, or, when the corridor passes a place where a deadlock began (ahead, within twice
+   ``clear_half_width`` of its centre line or :data:`SPOT_CONE` of it; the last :data:`SPOTS` such places within
    :data:`SPOT_RANGE` are remembered, dead-reckoned by the commands or taken from the odometry pose
    when the caller gives one), for ``clear_distance`` beyond that place: a bug algorithm's leave
    condition, progress past where the robot got stuck. Without it the escape hands back at the
    mouth of a U-shaped trap (the way in is clear for ``clear_distance`` there), and a goal-seeking
    nominal drives straight back in. The filter never learns the goal; only where it got stuck.
+   Through a gap (5.) it hands back at once, unless the m-line leads back past such a place and is
+   not clear beyond it (out of a trap through its own mouth); then it follows on and leaves as above.
 
 A corridor is **clear** when the body fits along it with the wrapped filter's margin: no current
 or remembered point (the escape looks at the scans and the memory where the wrapped filter will see
@@ -131,6 +138,11 @@ OPENING_RANGE = 2.0
 #: A nominal turning slower than this share of ``omega_max`` does not choose the side (a heading straight at the
 #: goal turns by a rounding error's sign).
 SIDE_DEADBAND = 1e-3
+
+#: A way passes a place where a deadlock began when that place lies ahead within twice ``clear_half_width`` of its
+#: centre line, or within this ratio of its distance along it (the tangent of 30 degrees): an obstacle that blocked
+#: the robot there stretches round that place, and a way aimed at it from afar runs into the same obstacle.
+SPOT_CONE = math.tan(math.radians(30.0))
 
 #: How many places where deadlocks began the escape remembers (the oldest is forgotten first).
 SPOTS = 8
@@ -423,7 +435,7 @@ class Escape:
             side = -self._last_side if self._elapsed >= self.config.max_time else self._last_side
         self._side, self._elapsed, self._backing, self._stalled = side, 0.0, 0.0, 0.0
         self._still, self._turn_left = 0.0, 0.0
-        self._start_yaw = self._odometry.yaw
+        self._start_yaw = self._odometry.yaw + intent      # the m-line: where the nominal was heading for
         self._gap, self._gap_left, self._gap_wait, self._held, self._standing = None, 0.0, 0.0, 0.0, 0.0
         self._spun, self._out, self._out_left = 0.0, None, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
@@ -446,7 +458,7 @@ class Escape:
         if not self._spots:
             return length
         along, across = self._spot_offsets(np.array([direction]))
-        passed = (along > 0.0) & (np.abs(across) < 2.0 * self.clear_half_width)
+        passed = (along > 0.0) & (np.abs(across) < np.maximum(2.0 * self.clear_half_width, SPOT_CONE * along))
         return max(length, float(along[passed].max()) + length) if passed.any() else length
 
     def _spot_offsets(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -476,7 +488,7 @@ class Escape:
             if middle.shape[0] == 0:
                 continue
             bearings = np.arctan2(middle[:, 1], middle[:, 0])
-            off = np.abs(wrap_angle(bearings - intent))
+            off = np.where(self._back(bearings), np.inf, np.abs(wrap_angle(bearings - intent)))
             nearest = int(np.argmin(off))
             if off[nearest] <= self.config.gap_window and (
                     best is None or off[nearest] < abs(wrap_angle(best - intent))):
@@ -540,7 +552,10 @@ class Escape:
             return np.array([speed, 0.0])
         # Keep the nearest point on the other side at `keep`, moving along its tangent (remembered points too:
         # a lidar that does not look back loses an obstacle's end as the robot goes round it).
-        other = known[np.sign(known[:, 1]) == -side] if np.any(np.sign(known[:, 1]) == -side) else known
+        # Points ahead within `keep` count on either side: the obstacle the escape goes round, while it is still on the
+        # chosen side (the start, facing it obliquely), is the one to turn away from, not one on the other side.
+        followed = (np.sign(known[:, 1]) == -side) | ((known[:, 0] > 0.0) & (np.hypot(known[:, 0], known[:, 1]) < keep))
+        other = known[followed] if np.any(followed) else known
         distance = np.hypot(other[:, 0], other[:, 1])
         nearest = other[int(np.argmin(distance))]
         bearing = math.atan2(nearest[1], nearest[0])
@@ -649,7 +664,15 @@ class Escape:
         if self._gap is not None:
             # Through the gap, and on along it until the filter has left its narrow body (a long robot's cover turns
             # badly where its disk does not fit: the nominal would turn it there).
-            return self._gap_left <= 0.0 and not self.inner.narrowed
+            if self._gap_left > 0.0 or self.inner.narrowed:
+                return False
+            m_line = -self._turned
+            if self._needed(m_line) <= cfg.clear_distance or self._clear(known, scans, m_line):
+                return True
+            # Through, but the m-line leads back past where the robot got stuck and is blocked beyond: out of a
+            # U-shaped trap through its own mouth, where a goal-seeking nominal would drive straight back in.
+            # Follow on round the obstacle instead, and leave as below.
+            self._gap, self._gap_wait = None, cfg.gap_retry
         if self._elapsed < cfg.min_time:
             return False
         if self._clear(known, scans, -self._turned):

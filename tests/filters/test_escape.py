@@ -583,3 +583,70 @@ def test_the_side_comes_from_a_door_only_the_narrow_body_fits_and_never_from_a_r
             escape._start(np.array([0.5, turn]), (scan,), scan.points(), None)
             sides.append(escape._side)
         assert sides == (expected or [sides[0], sides[0]])
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_the_side_is_not_towards_an_opening_that_leads_back_to_where_a_deadlock_began(make):
+    """The wall of the gap test with its two doors, the nominal straight ahead: the side is towards the nearer door
+    (left), unless a deadlock began beyond it; then towards the other one (goal_puzzlebot seed 11: the second
+    deadlock's escape went round the blocking box towards its far end, back to where the first deadlock began,
+    instead of round its near corner towards the goal)."""
+    robot = preset("rosbot")
+    x, doors = 0.6, (0.3, -0.45)
+    sides = []
+    for spot in (None, 0, 1):
+        escape = Escape(make(robot, 0.05))
+        width = 2.0 * escape.clear_half_width + 0.1
+        ends = sorted([-3.0, 3.0] + [centre + side * 0.5 * width for centre in doors for side in (-1, 1)])
+        scene = Scene.of(*(Segment((x, ends[i]), (x, ends[i + 1])) for i in range(0, len(ends), 2)))
+        scan = synthetic_scan(robot, scene)
+        if spot is not None:
+            bearing = math.atan2(doors[spot], x)
+            escape._spots = [1.6 * np.array([math.cos(bearing), math.sin(bearing)])]
+        escape._start(np.array([robot.v_max, 0.0]), (scan,), scan.points(), (x, 0.0))
+        sides.append(escape._side)
+    assert sides == [1, -1, 1]
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_following_turns_away_from_the_obstacle_ahead_on_the_chosen_side_before_it_follows_another(make):
+    """A pole ahead-right, close but outside the corridor straight ahead, and one behind-left: with the side
+    right (the first kept on the left), the follow turns right, round it; before, it followed only points
+    already on the left, turned left towards the pole and drove a loop (goal_puzzlebot seed 11)."""
+    robot = preset("puzzlebot")
+    escape = Escape(make(robot, 0.05))
+    keep = robot.radius + escape.margin + escape.config.follow_distance
+    near = 0.8 * keep * np.array([math.cos(math.radians(-50.0)), math.sin(math.radians(-50.0))])
+    assert abs(near[1]) > escape.clear_half_width        # not in the corridor ahead: no turn in place for it
+    centre = near * (1.0 + 0.05 / float(np.hypot(*near)))     # its edge towards the robot at `near`
+    scene = Scene.of(Circle(tuple(centre), 0.05), Circle((-0.3, 0.8), 0.05))
+    scan = synthetic_scan(robot, scene)
+    points = scan.points()
+    escape._start(np.array([robot.v_max, -1.0]), (scan,), points, tuple(near))
+    escape._side, escape._gap_wait = -1, escape.config.gap_retry      # right, and following (no gap search now)
+    command = escape._command(points, points, (scan,))
+    assert command[1] < -0.5 * escape.config.turn * robot.omega_max, command
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_through_a_gap_the_escape_hands_back_only_where_the_way_is_clear_past_where_the_deadlock_began(make):
+    """Through a gap (out of a U-shaped trap through its mouth, dead-end scenario, Puzzlebot seeds 3 and 4), the
+    escape hands back only when the way the robot was going is clear, and clear past a place where a deadlock began
+    that lies ahead of it, also obliquely (within 30 degrees): before, it handed back at the mouth whatever lay
+    ahead, and the nominal drove straight back into the trap, or the m-line, swung by the stall, missed the place
+    by a few centimetres more than the corridor and counted as clear at the mouth."""
+    robot = preset("rosbot")
+    spot = np.array([2.0, 0.6])         # ahead, 17 degrees off the m-line, 0.6 m from it: beyond the corridor
+    left = {}
+    for across in (0.8, 2.5, None):     # a wall across the way at that distance [m]
+        escape = Escape(make(robot, 0.05))
+        assert abs(spot[1]) > 2.0 * escape.clear_half_width
+        scene = Scene.of(Segment((across, -3.0), (across, 3.0))) if across else Scene.of(Circle((-3.0, 3.0), 0.1))
+        scan = synthetic_scan(robot, scene)
+        known = scan.points()
+        escape._start(np.array([robot.v_max, 0.0]), (scan,), known, None)
+        escape._spots = [spot]
+        escape._gap, escape._gap_left, escape._elapsed = 0.5, 0.0, 2.0 * escape.config.min_time
+        left[across] = escape._should_leave(np.array([0.0, 1.0]), known, (scan,))
+        assert left[across] or escape._gap is None            # through the gap either way: following, unless it left
+    assert left == {0.8: False, 2.5: False, None: True}
