@@ -241,12 +241,12 @@ class Escape:
         self._start_yaw = 0.0   # the heading of _odometry when the deadlock began [rad]
         self._since = math.inf  # time since the last escape ended [s]
         self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
-        self._gap: float | None = None   # heading through the gap being driven, since the deadlock began [rad]
+        self._gap: float | None = None   # heading through the gap being driven, off the m-line [rad]
         self._gap_width = 0.0   # the half-width it was found with [m]: the body's, or the filter's narrow body's
         self._gap_left = 0.0    # distance still to drive through it [m]
         self._gap_wait = 0.0    # distance to follow before looking for a gap again [m]
         self._spun = 0.0        # angle turned in place without driving since then [rad]
-        self._out: float | None = None   # heading of the way out being driven, since the deadlock began [rad]
+        self._out: float | None = None   # heading of the way out being driven, off the m-line [rad]
         self._out_left = 0.0    # distance still to drive along it [m]
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
         self._standing = 0.0    # how long the robot has stood while the nominal asked to drive straight on [s]
@@ -291,7 +291,7 @@ class Escape:
 
     @property
     def _turned(self) -> float:
-        """The heading change since the deadlock began [rad] (odometry's when the caller gives the pose)."""
+        """The heading off the m-line [rad] (0 facing along it; odometry's when the caller gives the pose)."""
         return float(wrap_angle(self._odometry.yaw - self._start_yaw))
 
     def __repr__(self) -> str:
@@ -375,10 +375,10 @@ class Escape:
         self._spun = self._spun + abs(float(result.u[1])) * held if in_place else 0.0
         side = "left" if self._side > 0 else "right"
         if self._gap is not None:
-            doing = f"driving through a gap {math.degrees(wrap_angle(self._gap)):+.0f} deg off the way it was going"
+            doing = f"driving through a gap {math.degrees(wrap_angle(self._gap)):+.0f} deg off the m-line"
         elif self._out is not None:
             doing = (f"driving out of a pocket the freest way, {math.degrees(wrap_angle(self._out)):+.0f} deg off the "
-                     f"way it was going")
+                     "m-line")
         elif self._backing > 0.0:
             doing = "backing out"
         else:
@@ -566,7 +566,7 @@ class Escape:
         return np.array([speed * max(math.cos(heading_error), 0.2), omega])
 
     def _steer(self, heading: float, speed: float, turn: float) -> np.ndarray:
-        """Towards ``heading`` (since the deadlock began) [rad]: turn at twice the error, at most ``turn`` [rad/s],
+        """Towards ``heading`` (off the m-line) [rad]: turn at twice the error, at most ``turn`` [rad/s],
         and drive at ``speed`` [m/s] times the error's cosine once it is under 0.5 rad."""
         heading_error = float(wrap_angle(heading - self._turned))
         omega = float(np.clip(2.0 * heading_error, -turn, turn))
@@ -592,7 +592,7 @@ class Escape:
         return all(rear.n_beams == 0 for rear in rears) and self.inner.blind_travel >= self.config.follow_distance
 
     def _find_gap(self, known: np.ndarray, scans: tuple[LaserScan, ...]) -> float | None:
-        """The passage heading nearest the m-line within ``gap_window`` of it (since the deadlock began) [rad]:
+        """The passage heading nearest the m-line within ``gap_window`` of it (off it) [rad]:
         among the passages the body fits (``clear_half_width``), else among those only the wrapped filter's narrow
         body fits (``gap_half_width``; the escape then sets the filter's ``narrow`` while it drives through)."""
         offsets = _fan(self.config.gap_window)
@@ -613,7 +613,7 @@ class Escape:
 
     def _passages(self, known: np.ndarray, scans: tuple[LaserScan, ...], headings: np.ndarray,
                   width: float) -> tuple[np.ndarray, np.ndarray]:
-        """For headings since the deadlock began [rad]: which are passages for a body of half-width ``width`` [m]
+        """For headings off the m-line [rad]: which are passages for a body of half-width ``width`` [m]
         (with the margin), and the room on their tighter side [m].
 
         A passage has points within ``gap_band`` of both edges of its corridor over ``clear_distance``
