@@ -238,7 +238,7 @@ class Escape:
         self._elapsed = 0.0
         self._backing = 0.0
         self._last_side = 0
-        self._start_yaw = 0.0   # the heading of _odometry when the deadlock began [rad]
+        self._start_yaw = 0.0   # the m-line's heading in _odometry's frame, set when the deadlock began [rad]
         self._since = math.inf  # time since the last escape ended [s]
         self._stalled = 0.0     # how long the filter has blocked the escape's own commands [s]
         self._gap: float | None = None   # heading through the gap being driven, off the m-line [rad]
@@ -554,13 +554,13 @@ class Escape:
         # a lidar that does not look back loses an obstacle's end as the robot goes round it).
         # Points ahead within `keep` count on either side: the obstacle the escape goes round, while it is still on the
         # chosen side (the start, facing it obliquely), is the one to turn away from, not one on the other side.
-        followed = (np.sign(known[:, 1]) == -side) | ((known[:, 0] > 0.0) & (np.hypot(known[:, 0], known[:, 1]) < keep))
-        other = known[followed] if np.any(followed) else known
-        distance = np.hypot(other[:, 0], other[:, 1])
-        nearest = other[int(np.argmin(distance))]
-        bearing = math.atan2(nearest[1], nearest[0])
+        distance = np.hypot(known[:, 0], known[:, 1])
+        followed = (np.sign(known[:, 1]) == -side) | ((known[:, 0] > 0.0) & (distance < keep))
+        candidates = np.flatnonzero(followed) if followed.any() else np.arange(known.shape[0])
+        nearest = int(candidates[np.argmin(distance[candidates])])
+        bearing = math.atan2(known[nearest, 1], known[nearest, 0])
         tangent = wrap_angle(bearing + side * 0.5 * math.pi)      # the obstacle stays on the other side
-        correction = float(np.clip((keep - float(distance.min())) / keep, -1.0, 1.0)) * side * 0.5
+        correction = float(np.clip((keep - float(distance[nearest])) / keep, -1.0, 1.0)) * side * 0.5
         heading_error = float(wrap_angle(tangent + correction))
         omega = float(np.clip(2.0 * heading_error, -turn, turn))
         return np.array([speed * max(math.cos(heading_error), 0.2), omega])

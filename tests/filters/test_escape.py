@@ -19,6 +19,7 @@ from safenav.filters.base import progress
 from safenav.filters.escape import WAY_OUT_TURN, Escape, EscapeConfig
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec
+from safenav.scan import LaserScan
 from safenav.scenarios import door_width
 from safenav.synthetic import Circle, Scene, Segment, box, synthetic_scan, wall
 
@@ -346,6 +347,23 @@ def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlock
     assert all(x > 2.0 or abs(y) > half for x, y, _ in handed_back), handed_back
 
 
+DOORS_AHEAD = 0.6   # [m]
+
+
+def _two_doors(robot: RobotSpec, escape: Escape) -> tuple[LaserScan, list[float]]:
+    """A wall ``DOORS_AHEAD`` ahead with two doors 0.1 m wider than ``escape``'s corridor, one 27 degrees left of the
+    heading and one 37 degrees right: the robot's scan of it and the doors' bearings [rad]."""
+    x, width, doors = DOORS_AHEAD, 2.0 * escape.clear_half_width + 0.1, (0.3, -0.45)
+    ends = sorted([-3.0, 3.0] + [centre + side * 0.5 * width for centre in doors for side in (-1, 1)])
+    scene = Scene.of(*(Segment((x, ends[i]), (x, ends[i + 1])) for i in range(0, len(ends), 2)))
+    return synthetic_scan(robot, scene), [math.atan2(centre, x) for centre in doors]
+
+
+def _beyond(bearing: float) -> np.ndarray:
+    """Where a deadlock beyond the door at ``bearing`` [rad] would have begun (base frame) [m]."""
+    return 1.6 * np.array([math.cos(bearing), math.sin(bearing)])
+
+
 @pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
 def test_a_gap_that_leads_back_to_where_a_deadlock_began_is_not_taken(make):
     """A wall 0.6 m ahead with two doors, one 27 degrees left of the heading and one 37 degrees right: the gap
@@ -355,15 +373,11 @@ def test_a_gap_that_leads_back_to_where_a_deadlock_began_is_not_taken(make):
     own record (``_spots``, set here as a deadlock beyond the door would have left it)."""
     robot = preset("rosbot")
     escape = Escape(make(robot, 0.05))
-    x, width, doors = 0.6, 2.0 * escape.clear_half_width + 0.1, (0.3, -0.45)
-    ends = sorted([-3.0, 3.0] + [centre + side * 0.5 * width for centre in doors for side in (-1, 1)])
-    scene = Scene.of(*(Segment((x, ends[i]), (x, ends[i + 1])) for i in range(0, len(ends), 2)))
-    scans = (synthetic_scan(robot, scene),)
-    known = scans[0].points()
-    bearings = [math.atan2(centre, x) for centre in doors]
+    scan, bearings = _two_doors(robot, escape)
+    scans, known = (scan,), scan.points()
     assert escape._find_gap(known, scans) == pytest.approx(bearings[0], abs=math.radians(4.0))
     for door, other in ((0, 1), (1, 0)):
-        escape._spots = [1.6 * np.array([math.cos(bearings[door]), math.sin(bearings[door])])]
+        escape._spots = [_beyond(bearings[door])]
         assert escape._find_gap(known, scans) == pytest.approx(bearings[other], abs=math.radians(4.0))
     escape._spots = [np.zeros(2)]       # where this deadlock began: here, behind every way out
     assert escape._find_gap(known, scans) == pytest.approx(bearings[0], abs=math.radians(4.0))
@@ -592,18 +606,13 @@ def test_the_side_is_not_towards_an_opening_that_leads_back_to_where_a_deadlock_
     deadlock's escape went round the blocking box towards its far end, back to where the first deadlock began,
     instead of round its near corner towards the goal)."""
     robot = preset("rosbot")
-    x, doors = 0.6, (0.3, -0.45)
     sides = []
     for spot in (None, 0, 1):
         escape = Escape(make(robot, 0.05))
-        width = 2.0 * escape.clear_half_width + 0.1
-        ends = sorted([-3.0, 3.0] + [centre + side * 0.5 * width for centre in doors for side in (-1, 1)])
-        scene = Scene.of(*(Segment((x, ends[i]), (x, ends[i + 1])) for i in range(0, len(ends), 2)))
-        scan = synthetic_scan(robot, scene)
+        scan, bearings = _two_doors(robot, escape)
         if spot is not None:
-            bearing = math.atan2(doors[spot], x)
-            escape._spots = [1.6 * np.array([math.cos(bearing), math.sin(bearing)])]
-        escape._start(np.array([robot.v_max, 0.0]), (scan,), scan.points(), (x, 0.0))
+            escape._spots = [_beyond(bearings[spot])]
+        escape._start(np.array([robot.v_max, 0.0]), (scan,), scan.points(), (DOORS_AHEAD, 0.0))
         sides.append(escape._side)
     assert sides == [1, -1, 1]
 
