@@ -379,9 +379,10 @@ class PointMemory:
     point is dropped when a current beam covers its direction and reads farther (the space is
     seen to be free: contradicted) or about as far (the scan shows it again), and kept when the
     beams towards it are invalid, outside every field of view, or read nearer (occluded). Each
-    carry adds the odometry's uncertainty to the point's ``uncertainty`` [m], which the filters
-    add to their margin for that point. Beyond ``capacity`` points the farthest are forgotten
-    first.
+    carry adds the odometry's uncertainty to the point's ``uncertainty`` [m] (:meth:`carry`; a
+    turn error also with the base's travel after it until the points are stored again), which the
+    filters add to their margin for that point. Beyond ``capacity`` points the farthest are
+    forgotten first.
 
     The points stay in the frame they were stored in, and the motions are composed, so carrying
     costs nothing until the points are recalled.
@@ -404,7 +405,9 @@ class PointMemory:
         self._points = np.empty((0, 2))
         self._uncertainty = np.empty(0)
         self._frame = Pose2D()          # the current base frame in the frame the points are stored in
-        self._error = np.zeros(2)       # odometry error bound accumulated since they were stored
+        # Odometry error bound accumulated since they were stored: translation, turn, and each carry's turn times
+        # the base's path since that carry (the turn was about where the base was then).
+        self._error = np.zeros(3)
 
     @property
     def points(self) -> np.ndarray:
@@ -422,7 +425,7 @@ class PointMemory:
         if not self._points.shape[0]:
             return self._uncertainty
         distance = np.hypot(self._points[:, 0] - self._frame.x, self._points[:, 1] - self._frame.y)
-        return self._uncertainty + self._error[0] + distance * self._error[1]
+        return self._uncertainty + self._error[0] + distance * self._error[1] + self._error[2]
 
     def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
         """Account for the motion to a new base frame, which is at ``motion`` in the old one.
@@ -430,11 +433,15 @@ class PointMemory:
         Args:
             motion: the pose of the new base frame in the old one [m, m, rad].
             uncertainty_rate: odometry error bound ``(e_translation [m], e_rotation [rad])`` of
-                this motion; a point at distance ``d`` gains ``e_translation + d e_rotation``.
+                this motion; a point at distance ``d`` from the new base origin gains
+                ``e_translation + d e_rotation``, and at every later carry (until the points are stored
+                again) ``e_rotation`` times that carry's straight-line travel: the turn was about the base
+                origin of this carry, which the base leaves behind.
         """
         if self._points.shape[0]:
             self._frame = self._frame.compose(motion)
-            self._error += uncertainty_rate
+            self._error[2] += self._error[1] * math.hypot(motion.x, motion.y)
+            self._error[:2] += uncertainty_rate
 
     def recall(self, scans: tuple[LaserScan, ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
         """The remembered points no current beam sees again or contradicts, and their uncertainty.
@@ -469,7 +476,7 @@ class PointMemory:
             order = np.argsort(distance, kind="stable")[: self.capacity]
             points, uncertainty = points[order], uncertainty[order]
         self._points, self._uncertainty = points, uncertainty
-        self._frame, self._error = Pose2D(), np.zeros(2)
+        self._frame, self._error = Pose2D(), np.zeros(3)
 
 
 #: Spacing of the grid on which the space no lidar sees now is checked against earlier scans [m].
@@ -703,7 +710,11 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
     ``(start + end) elapsed / 2``, off by at most ``|end - start| elapsed / 2``; the motion is
     the arc of those mean velocities. (A4's bases get there no later than a linear ramp, which
     would allow a quarter; the half also covers a base whose velocity follows the command with a
-    delay, as real bases do.)
+    delay, as real bases do.) At time ``t`` into the period the heading is off the arc's by at
+    most ``t |omega_end - omega_start| / 2``, which drags the path sideways while the base covers
+    ground: the end of the period is off by at most the speed's error ``|v_end - v_start|
+    elapsed / 2`` plus ``max(|v_start|, |v_end|) elapsed e_rotation / 2`` (a base that turns
+    at once from one yaw rate to the other, at full speed, is that far off).
 
     Args:
         start: ``(v, omega)`` measured at the previous call [m/s, rad/s].
@@ -718,7 +729,9 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     mean, change = 0.5 * (start + end), np.abs(end - start)
     motion = unicycle_step(Pose2D(), float(mean[0]), float(mean[1]), elapsed)
-    return motion, (0.5 * elapsed * float(change[0]), 0.5 * elapsed * float(change[1]))
+    rotation = 0.5 * elapsed * float(change[1])
+    drag = 0.5 * elapsed * max(abs(float(start[0])), abs(float(end[0]))) * rotation
+    return motion, (0.5 * elapsed * float(change[0]) + drag, rotation)
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray) -> np.ndarray:

@@ -43,6 +43,9 @@ def _commands(robot, rng: np.random.Generator, kind: str, periods: int) -> np.nd
     if kind == "flip":          # the yaw rate flips every period (a robot held in front of a wall), slow forward
         omega = 0.1 * robot.omega_max * (-1.0) ** np.arange(periods)
         return np.column_stack((np.full(periods, 0.1 * robot.v_max), omega))
+    if kind == "turn_at_speed":   # full speed, the yaw rate flipping between its limits: the heading errs most
+        omega = robot.omega_max * (-1.0) ** np.arange(periods)   # while the base covers the most ground
+        return np.column_stack((np.full(periods, robot.v_max), omega))
     if kind == "ramp_up":       # every change in the same direction: errors of one sign add up
         fraction = np.linspace(0.0, 1.0, periods)[:, None]
         return lower * 0.0 + fraction * upper
@@ -93,7 +96,7 @@ def _worst_excess(model: str, kind: str, seed: int, estimator=dead_reckoning) ->
     return worst
 
 
-@pytest.mark.parametrize("kind", ["extremes", "flip", "ramp_up", "random"])
+@pytest.mark.parametrize("kind", ["extremes", "flip", "turn_at_speed", "ramp_up", "random"])
 @pytest.mark.parametrize("model", [*BASE_MODELS, LATE])
 def test_a_remembered_point_stays_within_its_uncertainty(model, kind):
     for seed in range(3):
@@ -110,6 +113,47 @@ def test_the_bound_is_exact_a_fifth_less_is_not_a_bound(model):
     # The instant base covers the newer velocity for the whole period, the late one the older:
     # each is half the change times the period off the trapezoid, on the bound.
     assert max(_worst_excess(model, "extremes", seed, _shrunk) for seed in range(3)) > 1e-3
+
+
+@pytest.mark.parametrize("model", [*BASE_MODELS, LATE])
+@pytest.mark.parametrize("start", [(1.0, -1.0), (1.0, 0.0), (0.5, -1.0), (0.0, -1.0), (-1.0, 1.0)])
+def test_one_period_at_speed_with_the_yaw_rate_jumping_stays_within_the_bound(model, start):
+    # One carry, the speed held (no translation error of its own) or changing, the yaw rate jumping across its
+    # range: the base covers ground while its heading errs, which drags its path sideways by up to the ground
+    # covered times half the turn error; points ahead and behind see that drag and the turn add up.
+    robot = preset("rosbot")
+    dt = 0.05
+    start = np.array(start) * robot.upper
+    command = np.array([start[0] if start[0] != 0.0 else robot.v_max, -start[1] if start[1] else robot.omega_max])
+    poses, velocities = _drive(model, robot, command[None], dt, start=start)
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    world = np.concatenate([d * np.column_stack((np.cos(angles), np.sin(angles))) for d in (0.2, 0.5, 1.0)])
+    memory = PointMemory(max_range=100.0, capacity=10_000)
+    memory.store(world.copy(), np.empty((0, 2)), np.empty(0))
+    memory.carry(*dead_reckoning(velocities[0], velocities[1], dt))
+    excess = np.hypot(*(memory.points - poses[1].to_local(world)).T) - memory.uncertainty
+    assert excess.max() <= 1e-12, excess.max()
+
+
+@pytest.mark.parametrize("turn", [0.05, -0.05])
+def test_points_carried_over_several_periods_count_a_turn_error_with_the_path_driven_since(turn):
+    # The memory carried period after period without being stored again (what the filter does across calls that
+    # brake before they look at the scan: stale, no data): the odometry errs by a turn in place in the first
+    # period (within its stated bound), then the robot drives 1.5 m on exactly, past the point. The turn happened
+    # 1.5 m from the point, so the point is off by 1.5 m times the turn, not by its distance from the base now
+    # times it.
+    memory = PointMemory(max_range=5.0, capacity=10)
+    world = np.array([[1.5, 0.3], [1.5, -0.3], [2.0, 0.0], [0.5, 0.4]])
+    memory.store(world.copy(), np.empty((0, 2)), np.empty(0))
+    memory.carry(Pose2D(0.0, 0.0, 0.0), (0.0, abs(turn)))      # the base really turned by `turn`
+    pose = Pose2D(0.0, 0.0, turn)
+    step = Pose2D(0.05, 0.0, 0.0)
+    for _ in range(30):
+        memory.carry(step)
+        pose = pose.compose(step)
+        excess = np.hypot(*(memory.points - pose.to_local(world)).T) - memory.uncertainty
+        assert np.all(excess <= 1e-12), excess
+    assert memory.uncertainty[0] >= 1.5 * abs(turn)
 
 
 def test_the_estimate_is_the_trapezoid_and_the_bound_half_the_change():
