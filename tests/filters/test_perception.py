@@ -115,6 +115,39 @@ def test_the_bound_is_exact_a_fifth_less_is_not_a_bound(model):
     assert max(_worst_excess(model, "extremes", seed, _shrunk) for seed in range(3)) > 1e-3
 
 
+def test_a_remembered_point_whose_uncertainty_reaches_out_of_the_field_of_view_is_not_dropped_by_one_free_beam():
+    # A pole beside the m2wr's body, just behind the lidar's 90-degree edge; the odometry says the base turned
+    # left by 0.06 rad when it did not (within its stated bound), so the pole is remembered just inside the field
+    # of view, where the beam nearest it reads free. It may truly be anywhere within its uncertainty, and there
+    # the lidar does not look: the memory must keep it.
+    robot = preset("m2wr")
+    pole = np.array([0.13, 0.45])          # 92 degrees from the lidar at (0.15, 0): out of view
+    scene = Scene.of(Circle(tuple(pole), 0.01))
+    memory = PointMemory(max_range=2.0, capacity=100)
+    memory.store(pole[None].copy(), np.empty((0, 2)), np.empty(0))
+    memory.carry(Pose2D(0.0, 0.0, 0.06), (0.0, 0.06))
+    remembered = memory.points[0]
+    assert math.degrees(math.atan2(remembered[1], remembered[0] - 0.15)) < 90.0    # it is thought to be in view
+    assert np.hypot(*(remembered - pole)) <= memory.uncertainty[0] + 1e-12        # and the bound holds
+    points, uncertainty = memory.recall((synthetic_scan(robot, scene, Pose2D()),), tolerance=0.03)
+    assert points.shape[0] == 1 and np.hypot(*(points[0] - pole)) <= uncertainty[0] + 1e-12
+
+
+def test_a_remembered_point_is_dropped_only_when_every_beam_towards_its_uncertainty_shows_or_contradicts_it():
+    # The same memory in a room the lidar sees all of: free beyond the point everywhere it may be, it is dropped;
+    # a post nearer than the point in one beam within its uncertainty (not the nearest beam) hides where it may
+    # be, so it is kept, as a point occluded in its own beam is.
+    robot = preset("rosbot")
+    memory = PointMemory(max_range=3.0, capacity=100)
+    point = np.array([1.0, 0.0])
+    memory.store(point[None].copy(), np.empty((0, 2)), np.empty(0))
+    memory.carry(Pose2D(), (0.0, 0.05))                    # 5 cm of uncertainty, about 2.9 degrees
+    free = Scene.of(Segment((3.0, -3.0), (3.0, 3.0)))
+    assert memory.recall((synthetic_scan(robot, free, Pose2D()),), tolerance=0.03)[0].shape[0] == 0
+    hidden = Scene.of(Segment((3.0, -3.0), (3.0, 3.0)), Circle((0.5, 0.5 * math.tan(math.radians(2.0))), 0.005))
+    assert memory.recall((synthetic_scan(robot, hidden, Pose2D()),), tolerance=0.03)[0].shape[0] == 1
+
+
 @pytest.mark.parametrize("model", [*BASE_MODELS, LATE])
 @pytest.mark.parametrize("start", [(1.0, -1.0), (1.0, 0.0), (0.5, -1.0), (0.0, -1.0), (-1.0, 1.0)])
 def test_one_period_at_speed_with_the_yaw_rate_jumping_stays_within_the_bound(model, start):
