@@ -376,10 +376,11 @@ class PointMemory:
     After each call the memory holds the obstacle points of the call's scans within
     ``max_range`` of the base origin, plus the remembered points no scan saw again. At the
     next call they are moved into the new base frame by the motion since then; a remembered
-    point is dropped when the current beams towards everywhere it may be (within its uncertainty)
-    read farther (the space is seen to be free: contradicted) or about as far (the scan shows it
-    again), and kept when any of those beams is invalid, outside every field of view, or reads
-    nearer (occluded). Each
+    point is dropped when the current beam nearest its direction reads farther (the space is
+    seen to be free: contradicted) or about as far (the scan shows it again), and every beam
+    towards where it may be (within its uncertainty) is in the field of view and informative;
+    it is kept when the nearest beam reads nearer (occluded) and when a beam towards where it may
+    be is invalid or outside every field of view. Each
     carry adds the odometry's uncertainty to the point's ``uncertainty`` [m] (:meth:`carry`; a
     turn error also with the base's travel after it until the points are stored again), which the
     filters add to their margin for that point. Beyond ``capacity`` points the farthest are
@@ -737,16 +738,20 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, uncertainty: np.ndarray | None = None
                 ) -> np.ndarray:
-    """Mask of ``points`` whose direction ``scan`` covers with readings that show or contradict them.
+    """Mask of ``points`` whose direction ``scan`` covers with a reading that shows or contradicts them.
 
-    A point may truly be anywhere within ``uncertainty`` [m] of where it is remembered (default: exactly
-    there), which the lidar sees over a fan of bearings; every beam whose cell (half an increment either
-    side) meets that fan must be informative and read no nearer than the point minus ``tolerance``: about
-    its range (the point is there and the scan carries it now) or farther (the space is free). A nearer
-    reading occludes where it may be, ``-inf`` too; ``INVALID`` readings and directions outside the field of
-    view say nothing, so a point whose fan reaches past the edge of the field of view is not seen again.
-    (A remembered object narrower than the gap between two beams can be missed by the beams, as by any
-    scan: the margin covers the beam gap, ``docs/safety.md``.)
+    The beam nearest a point's direction sees it again when it is informative and reads no
+    nearer than the point minus ``tolerance``: about its range (the point is there and the
+    scan carries it now) or farther (the space is free). A nearer reading occludes it,
+    ``-inf`` too; ``INVALID`` readings and directions outside the field of view say nothing.
+    A point may truly be anywhere within ``uncertainty`` [m] of where it is remembered (default:
+    exactly there), which the lidar sees over a fan of bearings: every beam whose cell (half an
+    increment either side) meets the fan must be in the field of view and informative, or the
+    point may be where the lidar does not look. (Where such a beam reads nearer, the point may be
+    hidden behind that reading, as any obstacle the robot never saw may be: the filters keep the
+    edges of what obstacles hide, ``shadow_points``, for every scan. A remembered object narrower
+    than the gap between two beams can be missed by the nearest beam, as by any scan: the margin
+    covers the beam gap, ``docs/safety.md``.)
     """
     mount = scan.mount
     dx, dy = points[:, 0] - mount.x, points[:, 1] - mount.y
@@ -755,29 +760,28 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     offset = np.mod(np.arctan2(dy, dx) - mount.yaw - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
     index = np.floor(offset / increment + 0.5).astype(np.intp)
     seen = _seen_ranges(scan)
-    wraps = scan.n_beams * increment >= TWO_PI - 1e-9
-    if uncertainty is None or not np.any(uncertainty > 0.0):
-        inside = (index >= 0) & (index < scan.n_beams)
-        return inside & (seen.take(index, mode="clip") >= reach - tolerance)
+    inside = (index >= 0) & (index < scan.n_beams)
+    again = inside & (seen.take(index, mode="clip") >= reach - tolerance)
+    if uncertainty is None or not np.any(again & (uncertainty > 0.0)):
+        return again
     # The fan's half-angle, and the beams whose cells it meets either side of the nearest one.
     half = np.arcsin(np.minimum(uncertainty / np.maximum(reach, 1e-12), 1.0))
     low = np.floor((offset - half) / increment + 0.5).astype(np.intp)
     high = np.floor((offset + half) / increment + 0.5).astype(np.intp)
     width = np.maximum(index - low, high - index)
-    inside = (index >= 0) & (index < scan.n_beams)
+    wraps = scan.n_beams * increment >= TWO_PI - 1e-9
     if not wraps:
-        inside &= (low >= 0) & (high < scan.n_beams)
-    level = np.searchsorted(_WINDOWS, width)            # the smallest window at least that wide
-    clipped = np.minimum(index, scan.n_beams - 1) % max(scan.n_beams, 1)
-    nearest = seen.take(clipped)
-    if np.any(width > 0):
-        minima = _window_minima(seen, wraps)
-        windowed = minima[np.minimum(level, len(_WINDOWS) - 1), clipped]
-        nearest = np.where(width > 0, windowed, nearest)
-        for k in np.flatnonzero(inside & (level >= len(_WINDOWS))):    # wider than the widest window: few
+        again &= (low >= 0) & (high < scan.n_beams)
+    fan = again & (width > 0)
+    if fan.any():
+        level = np.searchsorted(_WINDOWS, width)      # the smallest window at least that wide
+        centre = np.minimum(index, scan.n_beams - 1)
+        smallest = _window_minima(seen, wraps)[np.minimum(level, len(_WINDOWS) - 1), centre]
+        for k in np.flatnonzero(fan & (level >= len(_WINDOWS))):     # wider than the widest window: few
             beams = np.arange(low[k], high[k] + 1)
-            nearest[k] = seen.take(beams % scan.n_beams).min() if beams.size <= scan.n_beams else seen.min()
-    return inside & (nearest >= reach - tolerance)
+            smallest[k] = seen.take(beams % scan.n_beams).min() if beams.size <= scan.n_beams else seen.min()
+        again &= ~fan | (smallest > -np.inf)
+    return again
 
 
 def _seen_ranges(scan: LaserScan, shrink: float = 0.0) -> np.ndarray:
