@@ -458,7 +458,8 @@ class PointMemory:
         points, uncertainty = self.points, self.uncertainty
         keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
-            keep &= ~_seen_again(scan, points, tolerance + uncertainty, uncertainty)
+            seen, points, uncertainty = _seen_again(scan, points, tolerance + uncertainty, uncertainty)
+            keep &= ~seen
         return points[keep], uncertainty[keep]
 
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
@@ -736,23 +737,34 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
     return motion, (0.5 * elapsed * float(change[0]) + drag, rotation)
 
 
-def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, uncertainty: np.ndarray | None = None
-                ) -> np.ndarray:
-    """Mask of ``points`` whose direction ``scan`` covers with a reading that shows or contradicts them.
+def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, uncertainty: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which remembered ``points`` ``scan`` shows or contradicts, and where the others may still be.
 
     The beam nearest a point's direction sees it again when it is informative and reads no
     nearer than the point minus ``tolerance``: about its range (the point is there and the
     scan carries it now) or farther (the space is free). A nearer reading occludes it,
     ``-inf`` too; ``INVALID`` readings and directions outside the field of view say nothing.
-    A point may truly be anywhere within ``uncertainty`` [m] of where it is remembered (default:
-    exactly there), which the lidar sees over a fan of bearings: every beam whose cell (half an
-    increment either side) meets the fan must be in the field of view and informative, or the
-    point may be where the lidar does not look. (Where such a beam reads nearer, the point may be
-    hidden behind that reading, as any obstacle the robot never saw may be: the filters keep the
-    edges of what obstacles hide, ``shadow_points``, for every scan. A remembered object narrower
-    than the gap between two beams can be missed by the nearest beam, as by any scan: the margin
-    covers the beam gap, ``docs/safety.md``.)
+    A point may truly be anywhere within ``uncertainty`` [m] of where it is remembered, which
+    the lidar sees over a fan of bearings (all of them when the disk holds the lidar): every
+    beam whose cell (half an increment either side) meets the fan must be in the field of view
+    and informative too, or the point may be where the lidar does not look. (Where such a beam
+    reads nearer, the point may be hidden behind that reading, as any obstacle the robot never
+    saw may be: the filters keep the edges of what obstacles hide, ``shadow_points``, for every
+    scan. A remembered object narrower than the gap between two beams can be missed by the
+    nearest beam, as by any scan: the margin covers the beam gap, ``docs/safety.md``.)
+
+    A point whose fan passes one edge of the field of view, and is seen otherwise, may only be in
+    the part of its disk out of view (the part in view the scan accounts for as above), which lies
+    beyond the line of that edge (the fan spans less than half a turn: the lidar is outside the
+    disk): it is moved to the middle of that part's chord with the chord's half-length as its
+    uncertainty, the smallest disk that holds it.
+
+    Returns:
+        ``(seen, points, uncertainty)``: the mask of the points seen again, and the points and their
+        uncertainty [m] with those beyond one edge narrowed down.
     """
+    n = scan.n_beams
     mount = scan.mount
     dx, dy = points[:, 0] - mount.x, points[:, 1] - mount.y
     reach = np.hypot(dx, dy)
@@ -760,28 +772,66 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     offset = np.mod(np.arctan2(dy, dx) - mount.yaw - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
     index = np.floor(offset / increment + 0.5).astype(np.intp)
     seen = _seen_ranges(scan)
-    inside = (index >= 0) & (index < scan.n_beams)
+    inside = (index >= 0) & (index < n)
     again = inside & (seen.take(index, mode="clip") >= reach - tolerance)
-    if uncertainty is None or not np.any(again & (uncertainty > 0.0)):
-        return again
-    # The fan's half-angle, and the beams whose cells it meets either side of the nearest one.
-    half = np.arcsin(np.minimum(uncertainty / np.maximum(reach, 1e-12), 1.0))
+    if not np.any(again & (uncertainty > 0.0)):
+        return again, points, uncertainty
+    # The fan's half-angle, and the beams whose cells it meets.
+    half = np.where(uncertainty >= reach, math.pi, np.arcsin(np.minimum(uncertainty / np.maximum(reach, 1e-12), 1.0)))
     low = np.floor((offset - half) / increment + 0.5).astype(np.intp)
     high = np.floor((offset + half) / increment + 0.5).astype(np.intp)
-    width = np.maximum(index - low, high - index)
-    wraps = scan.n_beams * increment >= TWO_PI - 1e-9
-    if not wraps:
-        again &= (low >= 0) & (high < scan.n_beams)
-    fan = again & (width > 0)
-    if fan.any():
-        level = np.searchsorted(_WINDOWS, width)      # the smallest window at least that wide
-        centre = np.minimum(index, scan.n_beams - 1)
-        smallest = _window_minima(seen, wraps)[np.minimum(level, len(_WINDOWS) - 1), centre]
-        for k in np.flatnonzero(fan & (level >= len(_WINDOWS))):     # wider than the widest window: few
-            beams = np.arange(low[k], high[k] + 1)
-            smallest[k] = seen.take(beams % scan.n_beams).min() if beams.size <= scan.n_beams else seen.min()
-        again &= ~fan | (smallest > -np.inf)
-    return again
+    wraps = n * increment >= TWO_PI - 1e-9
+    if wraps:
+        whole = high - low + 1 >= n
+        low, high = np.where(whole, 0, low), np.where(whole, n - 1, high)
+        beyond = first = np.zeros(points.shape[0], dtype=bool)
+    else:
+        under, over = low < 0, high >= n
+        beyond = again & (under ^ over) & (uncertainty < reach)
+        first = under                                                   # beyond the first beam's edge
+        again &= ~(under | over)
+        low, high = np.maximum(low, 0), np.minimum(high, n - 1)      # the part of the fan in view
+    check = (again | beyond) & (high > low)
+    if check.any():
+        informative = _range_minima(seen, _window_minima(seen, wraps), low[check], high[check]) > -np.inf
+        again[check] &= informative
+        beyond[check] &= informative
+    if not beyond.any():
+        return again, points, uncertainty
+    # Beyond one edge: the edge's line through the lidar, its normal into the view, the point's distance
+    # from it on the side in view; the disk's part beyond it is within the chord's half-length of its middle.
+    edge = scan.angle_min + mount.yaw + np.where(first[beyond], -0.5, n - 0.5) * increment
+    inward = np.where(first[beyond], 1.0, -1.0)
+    normal = np.column_stack((-np.sin(edge) * inward, np.cos(edge) * inward))
+    depth = dx[beyond] * normal[:, 0] + dy[beyond] * normal[:, 1]
+    narrowed = depth > 0.0
+    rows = np.flatnonzero(beyond)[narrowed]
+    depth, normal = depth[narrowed], normal[narrowed]
+    points, uncertainty = points.copy(), uncertainty.copy()
+    points[rows] -= depth[:, None] * normal
+    uncertainty[rows] = np.sqrt(np.maximum(uncertainty[rows] ** 2 - depth ** 2, 0.0))
+    return again, points, uncertainty
+
+
+def _range_minima(values: np.ndarray, minima: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The smallest of ``values[low .. high]`` for each pair (indices taken round the turn), from
+    :func:`_window_minima`'s ``minima``: two windows of the largest half-width that fits, one from each end;
+    ranges wider than the widest window one by one."""
+    n = values.size
+    length = high - low + 1
+    level = np.floor(np.log2(np.maximum((length - 1) // 2, 1))).astype(np.intp)
+    fits = (length >= 3) & (level < len(_WINDOWS))
+    level = np.minimum(level, len(_WINDOWS) - 1)
+    width = _WINDOWS[level]
+    out = np.minimum(values.take(low % n), values.take(high % n))
+    if fits.any():
+        rows = minima[level[fits]]
+        picked = np.arange(rows.shape[0])
+        from_low, from_high = (low[fits] + width[fits]) % n, (high[fits] - width[fits]) % n
+        out[fits] = np.minimum(rows[picked, from_low], rows[picked, from_high])
+    for k in np.flatnonzero((length >= 3) & ~fits):
+        out[k] = values.take(np.arange(low[k], high[k] + 1) % n).min()
+    return out
 
 
 def _seen_ranges(scan: LaserScan, shrink: float = 0.0) -> np.ndarray:

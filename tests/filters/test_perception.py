@@ -26,7 +26,7 @@ from safenav.filters.perception import (
     shadow_points,
 )
 from safenav.geometry import Pose2D, unicycle_step
-from safenav.robot import preset
+from safenav.robot import LidarSpec, preset
 from safenav.scan import Reading
 from safenav.synthetic import Circle, Scene, Segment, synthetic_scan
 
@@ -150,6 +150,45 @@ def test_a_remembered_point_is_dropped_only_when_every_beam_towards_where_it_may
     ranges = scan.ranges.copy()
     ranges[(nearest + 4) % scan.n_beams] = math.nan                  # 2 degrees off the nearest beam
     assert memory.recall((scan.with_ranges(ranges),), tolerance=0.03)[0].shape[0] == 1
+
+
+def _lidar(view_deg: float, yaw: float) -> LidarSpec:
+    half = math.radians(view_deg) / 2.0
+    return LidarSpec(n_beams=int(view_deg * 2), angle_min=-half, angle_max=half, range_min=0.05, range_max=10.0,
+                     mount=Pose2D(0.1, -0.05, yaw))
+
+
+@pytest.mark.parametrize("view_deg, yaw", [(180.0, 0.0), (270.0, 0.6), (120.0, math.pi)])
+def test_what_the_memory_keeps_of_a_point_it_cannot_see_still_holds_where_it_truly_is(view_deg, yaw):
+    # Remembered points off their true place by up to their uncertainty, the true ones thin posts; a post the
+    # lidar cannot see (out of its field of view) must stay remembered, within the uncertainty of what is kept
+    # of it (a point seen but for the part of its disk beyond one edge of the field of view is narrowed to that
+    # part). Posts in view are the scan's.
+    lidar = _lidar(view_deg, yaw)
+    rng = np.random.default_rng(int(view_deg))
+    narrowed = 0
+    for _ in range(300):
+        truth = rng.uniform(-1.5, 1.5, size=(6, 2))
+        uncertainty = rng.uniform(0.0, 0.8, 6) * rng.choice([0.05, 0.3, 1.0], 6)
+        direction = rng.uniform(-np.pi, np.pi, 6)
+        remembered = truth + (rng.uniform(0.0, 1.0, 6) * uncertainty)[:, None] * np.column_stack(
+            (np.cos(direction), np.sin(direction)))
+        memory = PointMemory(max_range=10.0, capacity=100)
+        memory.store(remembered, np.empty((0, 2)), np.empty(0))
+        memory._uncertainty = uncertainty.copy()            # as carried with odometry errors up to it
+        scene = Scene.of(*(Circle(tuple(post), 0.004) for post in truth))
+        scan = synthetic_scan(lidar, scene, Pose2D())
+        kept, kept_uncertainty = memory.recall((scan,), tolerance=0.02)
+        sensor = lidar.mount.inverse()
+        for post in truth:
+            local = sensor.compose(Pose2D(*post, 0.0))
+            bearing = math.atan2(local.y, local.x)
+            if abs(bearing) < lidar.angle_max + 0.5 * scan.angle_increment:
+                continue                                    # in view: the scan's
+            holds = np.hypot(*(kept - post).T) <= kept_uncertainty + 1e-9
+            assert holds.any(), (post, remembered, uncertainty, kept, kept_uncertainty)
+        narrowed += int(np.sum(kept_uncertainty < np.min(uncertainty) - 1e-9) > 0)
+    assert narrowed > 0            # the narrowing happened, not only keeping the whole disks
 
 
 @pytest.mark.parametrize("model", [*BASE_MODELS, LATE])
