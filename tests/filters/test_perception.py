@@ -152,6 +152,18 @@ def test_a_remembered_point_is_dropped_only_when_every_beam_towards_where_it_may
     assert memory.recall((scan.with_ranges(ranges),), tolerance=0.03)[0].shape[0] == 1
 
 
+@pytest.mark.parametrize("n", [5, 181, 720])
+def test_range_minima_are_the_smallest_value_of_each_range_round_the_turn(n):
+    rng = np.random.default_rng(n)
+    values = np.where(rng.random(n) < 0.05, -np.inf, rng.uniform(0.0, 5.0, n))
+    minima = perception._window_minima(values, True)
+    low = rng.integers(-n, n, 400)
+    high = low + rng.integers(0, n, 400)
+    got = perception._range_minima(values, minima, low, high)
+    for k in range(400):
+        assert got[k] == values.take(np.arange(low[k], high[k] + 1) % n).min()
+
+
 def _lidar(view_deg: float, yaw: float) -> LidarSpec:
     half = math.radians(view_deg) / 2.0
     return LidarSpec(n_beams=int(view_deg * 2), angle_min=-half, angle_max=half, range_min=0.05, range_max=10.0,
