@@ -757,8 +757,10 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     A point whose fan passes one edge of the field of view, and is seen otherwise, may only be in
     the part of its disk out of view (the part in view the scan accounts for as above), which lies
     beyond the line of that edge (the fan spans less than half a turn: the lidar is outside the
-    disk): it is moved to the middle of that part's chord with the chord's half-length as its
-    uncertainty, the smallest disk that holds it.
+    disk), or, when the disk holds the lidar and the field of view spans half a turn or more,
+    beyond the lines of both edges: it is moved to the middle of the chord of the line it lies
+    deeper behind, with the chord's half-length as its uncertainty, the smallest disk that holds
+    the disk's part beyond that line.
 
     Returns:
         ``(seen, points, uncertainty)``: the mask of the points seen again, and the points and their
@@ -784,11 +786,14 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     if wraps:
         whole = high - low + 1 >= n
         low, high = np.where(whole, 0, low), np.where(whole, n - 1, high)
-        beyond = first = np.zeros(points.shape[0], dtype=bool)
+        beyond, first = np.zeros(points.shape[0], dtype=bool), np.zeros(points.shape[0], dtype=np.intp)
     else:
         under, over = low < 0, high >= n
         beyond = again & (under ^ over) & (uncertainty < reach)
-        first = under                                                   # beyond the first beam's edge
+        # A disk that holds the lidar meets every bearing; out of a field of view of half a turn or more it
+        # lies beyond the lines of both edges.
+        beyond |= again & (uncertainty >= reach) & (n * increment >= math.pi)
+        first = np.where(under & over, 0, np.where(under, 1, 2))    # beyond which edge: both, the first, the last
         again &= ~(under | over)
         low, high = np.maximum(low, 0), np.minimum(high, n - 1)      # the part of the fan in view
     check = (again | beyond) & (high > low)
@@ -798,12 +803,15 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
         beyond[check] &= informative
     if not beyond.any():
         return again, points, uncertainty
-    # Beyond one edge: the edge's line through the lidar, its normal into the view, the point's distance
-    # from it on the side in view; the disk's part beyond it is within the chord's half-length of its middle.
-    edge = scan.angle_min + mount.yaw + np.where(first[beyond], -0.5, n - 0.5) * increment
-    inward = np.where(first[beyond], 1.0, -1.0)
-    normal = np.column_stack((-np.sin(edge) * inward, np.cos(edge) * inward))
-    depth = dx[beyond] * normal[:, 0] + dy[beyond] * normal[:, 1]
+    # Beyond an edge: the edge's line through the lidar, its normal into the view, the point's distance from it
+    # on the side in view (beyond both edges, the larger); the disk's part beyond that line is within the
+    # chord's half-length of its middle.
+    edges = scan.angle_min + mount.yaw + np.array([-0.5, n - 0.5]) * increment
+    normals = np.array([[-math.sin(edges[0]), math.cos(edges[0])], [math.sin(edges[1]), -math.cos(edges[1])]])
+    depths = np.column_stack((dx[beyond], dy[beyond])) @ normals.T                 # (B, 2): first, last
+    which = first[beyond]
+    pick = np.where(which == 1, 0, np.where(which == 2, 1, np.argmax(depths, axis=1)))
+    depth, normal = depths[np.arange(pick.size), pick], normals[pick]
     narrowed = depth > 0.0
     rows = np.flatnonzero(beyond)[narrowed]
     depth, normal = depth[narrowed], normal[narrowed]

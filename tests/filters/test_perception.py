@@ -180,7 +180,8 @@ def test_what_the_memory_keeps_of_a_point_it_cannot_see_still_holds_where_it_tru
     rng = np.random.default_rng(int(view_deg))
     narrowed = 0
     for _ in range(300):
-        truth = rng.uniform(-1.5, 1.5, size=(6, 2))
+        spread = rng.choice([0.5, 1.5])          # near the lidar, disks that hold it
+        truth = rng.uniform(-spread, spread, size=(6, 2))
         uncertainty = rng.uniform(0.0, 0.8, 6) * rng.choice([0.05, 0.3, 1.0], 6)
         direction = rng.uniform(-np.pi, np.pi, 6)
         remembered = truth + (rng.uniform(0.0, 1.0, 6) * uncertainty)[:, None] * np.column_stack(
