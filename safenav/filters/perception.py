@@ -786,14 +786,13 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     if wraps:
         whole = high - low + 1 >= n
         low, high = np.where(whole, 0, low), np.where(whole, n - 1, high)
-        beyond, first = np.zeros(points.shape[0], dtype=bool), np.zeros(points.shape[0], dtype=np.intp)
+        beyond, under, over = (np.zeros(points.shape[0], dtype=bool) for _ in range(3))
     else:
         under, over = low < 0, high >= n
         beyond = again & (under ^ over) & (uncertainty < reach)
         # A disk that holds the lidar meets every bearing; out of a field of view of half a turn or more it
         # lies beyond the lines of both edges.
         beyond |= again & (uncertainty >= reach) & (n * increment >= math.pi)
-        first = np.where(under & over, 0, np.where(under, 1, 2))    # beyond which edge: both, the first, the last
         again &= ~(under | over)
         low, high = np.maximum(low, 0), np.minimum(high, n - 1)      # the part of the fan in view
     check = (again | beyond) & (high > low)
@@ -809,8 +808,8 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     edges = scan.angle_min + mount.yaw + np.array([-0.5, n - 0.5]) * increment
     normals = np.array([[-math.sin(edges[0]), math.cos(edges[0])], [math.sin(edges[1]), -math.cos(edges[1])]])
     depths = np.column_stack((dx[beyond], dy[beyond])) @ normals.T                 # (B, 2): first, last
-    which = first[beyond]
-    pick = np.where(which == 1, 0, np.where(which == 2, 1, np.argmax(depths, axis=1)))
+    under, over = under[beyond], over[beyond]
+    pick = np.where(under & over, np.argmax(depths, axis=1), np.where(under, 0, 1))
     depth, normal = depths[np.arange(pick.size), pick], normals[pick]
     narrowed = depth > 0.0
     rows = np.flatnonzero(beyond)[narrowed]

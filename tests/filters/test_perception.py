@@ -187,8 +187,7 @@ def test_what_the_memory_keeps_of_a_point_it_cannot_see_still_holds_where_it_tru
         remembered = truth + (rng.uniform(0.0, 1.0, 6) * uncertainty)[:, None] * np.column_stack(
             (np.cos(direction), np.sin(direction)))
         memory = PointMemory(max_range=10.0, capacity=100)
-        memory.store(remembered, np.empty((0, 2)), np.empty(0))
-        memory._uncertainty = uncertainty.copy()            # as carried with odometry errors up to it
+        memory.store(np.empty((0, 2)), remembered, uncertainty.copy())     # as recalled after odometry errors up to it
         scene = Scene.of(*(Circle(tuple(post), 0.004) for post in truth))
         scan = synthetic_scan(lidar, scene, Pose2D())
         kept, kept_uncertainty = memory.recall((scan,), tolerance=0.02)
