@@ -52,7 +52,7 @@ from safenav.sim_bullet import BulletSim, SimConfig, SimState
 from safenav.worlds import World
 
 __all__ = ["EpisodeConfig", "EpisodeMetrics", "EpisodeResult", "Liveness", "Trajectory", "liveness", "run_episode",
-           "stalled"]
+           "stalled", "stationary"]
 
 RESUME_TIME = 0.25
 """Progress along the nominal must last this long to end a deadlock, and must resume within it after an
@@ -77,9 +77,12 @@ class EpisodeConfig:
             velocity's dead reckoning, whose error bound grows with every change of the velocity.
         goal_tolerance: the goal counts as reached within this distance of the base [m].
         stop_at_goal: end the episode once the goal is reached.
-        stuck_speed: below this linear [m/s] and ``stuck_turn`` angular [rad/s] speed the
-            robot counts as not moving.
+        stuck_speed: the robot counts as not moving while, over the last ``stuck_window``, its
+            base got less than this far per second from where it was [m/s] and turned less than
+            ``stuck_turn`` per second from how it faced (see :func:`stationary`).
         stuck_turn: see ``stuck_speed`` [rad/s].
+        stuck_window: how far back ``stuck_speed`` and ``stuck_turn`` look [s]: a robot that shakes
+            back and forth, or left and right, in front of an obstacle does not move.
         deadlock_time: a run of stalled periods (see :func:`liveness`) counts as deadlocked
             time once it lasts this long [s]: the filters' default ``deadlock_time``.
     """
@@ -93,10 +96,11 @@ class EpisodeConfig:
     stop_at_goal: bool = True
     stuck_speed: float = 0.02
     stuck_turn: float = 0.05
+    stuck_window: float = 1.0
     deadlock_time: float = 1.5
 
     def __post_init__(self) -> None:
-        for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn", "deadlock_time"):
+        for name in ("duration", "goal_tolerance", "stuck_speed", "stuck_turn", "stuck_window", "deadlock_time"):
             object.__setattr__(self, name, positive(f"EpisodeConfig.{name}", getattr(self, name)))
         for name in ("stop_on_collision", "give_velocity", "give_pose", "stop_at_goal"):
             object.__setattr__(self, name, boolean(f"EpisodeConfig.{name}", getattr(self, name)))
@@ -129,7 +133,8 @@ class EpisodeMetrics:
         goal_reached: whether the goal was reached (``None`` without a goal).
         time_to_goal: when it was reached [s] (``None`` if not).
         goal_progress: start distance to the goal minus the final one [m] (``None`` without a goal).
-        stuck_time: time during which the nominal asked to move but the robot did not [s].
+        stuck_time: time during which the nominal asked to move but the robot did not [s]
+            (:attr:`EpisodeConfig.stuck_speed`).
         fallbacks: periods in which the filter braked because its optimiser failed.
         statuses: how many periods ended with each filter status.
         filter_times: wall time of every filter call [s] (empty without a filter).
@@ -238,6 +243,33 @@ def stalled(nominal: np.ndarray, commands: np.ndarray, scale: np.ndarray) -> np.
     moves = finite & (np.max(np.abs(wanted), axis=1) > STILL)
     kept = np.sum(commands / scale * wanted, axis=1) / np.where(size > 0.0, size, 1.0)
     return moves & (kept < STALL_PROGRESS)
+
+
+def stationary(poses: np.ndarray, times: np.ndarray, speed: float, turn: float, window: float) -> np.ndarray:
+    """Whether the robot stood at each pose, by where it was ``window`` [s] earlier.
+
+    The robot stood at pose ``k`` when, against the pose at ``max(times[k] - window, times[0])``,
+    its base is less than ``speed`` times the time between them away and faces less than ``turn``
+    times that time away.
+
+    Args:
+        poses: ``(K, 3)`` base poses ``(x, y, yaw)`` [m, m, rad], in time order.
+        times: ``(K,)`` their times [s], increasing.
+        speed: [m/s].
+        turn: [rad/s].
+        window: how far back [s] (the first pose compares with itself and stands).
+
+    Returns:
+        ``(K,)`` booleans. The speed over a window rather than at an instant: a robot shaking back
+        and forth, or left and right, in front of an obstacle (its speed changing sign a few times a
+        second) gets nowhere, and stands.
+    """
+    poses, times = np.asarray(poses, dtype=float).reshape(-1, 3), np.asarray(times, dtype=float).ravel()
+    start = np.searchsorted(times, times - window - 1e-9)
+    span = times - times[start]
+    travelled = np.hypot(*(poses[:, :2] - poses[start, :2]).T)
+    turned = np.abs(np.angle(np.exp(1j * (poses[:, 2] - poses[start, 2]))))
+    return (travelled <= speed * span) & (turned <= turn * span)
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -415,7 +447,7 @@ def run_episode(
         filter_times: list[float] = []
         statuses: dict[str, int] = {}
         min_clearance = state.clearance
-        stuck_steps = 0
+        wants_log: list[bool] = []
         time_to_goal = None
         for _ in range(config.steps):
             scan = state.scan
@@ -430,10 +462,8 @@ def run_episode(
                 filter_times.append(result.filter_time)
                 u, status = result.u, result.status.value
             statuses[status] = statuses.get(status, 0) + 1
-            wants_to_move = abs(u_nom[0]) > config.stuck_speed or abs(u_nom[1]) > config.stuck_turn
+            wants_log.append(abs(u_nom[0]) > config.stuck_speed or abs(u_nom[1]) > config.stuck_turn)
             state = sim.step(u)
-            moving = abs(state.velocity[0]) > config.stuck_speed or abs(state.velocity[1]) > config.stuck_turn
-            stuck_steps += wants_to_move and not moving
             min_clearance = min(min_clearance, state.min_clearance)
             poses.append(state.pose)
             velocities.append(state.velocity)
@@ -460,6 +490,8 @@ def run_episode(
     nominal = np.array(nominal_log, dtype=float).reshape(-1, 2)
     commands = np.array(command_log, dtype=float).reshape(-1, 2)
     intervention = np.hypot(*(commands - nominal).T) if len(commands) else np.zeros(0)
+    stood = stationary(pose_array, np.array(times), config.stuck_speed, config.stuck_turn, config.stuck_window)[1:]
+    stuck_steps = int(np.count_nonzero(np.array(wants_log, dtype=bool) & stood))
     goal_reached = None if goal is None else time_to_goal is not None
     lively = liveness(nominal, commands, np.array(escaping_log, dtype=bool), dt, robot.upper,
                       goal_reached=bool(goal_reached), min_deadlock=config.deadlock_time)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from safenav import InvalidConfig, Pose2D, preset
-from safenav.episode import RESUME_TIME, EpisodeConfig, liveness, run_episode, stalled
+from safenav.episode import RESUME_TIME, EpisodeConfig, liveness, run_episode, stalled, stationary
 from safenav.filters import CBFSafetyFilter, ZonesFilter, make_filter
 from safenav.reference import GoToGoal, Policy, RandomWalk
 from safenav.robot import Command
@@ -131,6 +131,31 @@ def test_filter_period_must_match_the_control_period():
 def test_bad_episode_config_names_the_field():
     with pytest.raises(InvalidConfig, match=r"EpisodeConfig\.duration must be a finite number > 0"):
         EpisodeConfig(duration=0.0)
+    with pytest.raises(InvalidConfig, match=r"EpisodeConfig\.stuck_window must be a finite number > 0"):
+        EpisodeConfig(stuck_window=-1.0)
+
+
+STEPS = np.arange(0.0, 5.0 + 1e-9, 0.05)      # 5 s of 50 ms periods [s]
+
+
+def _poses(x=0.0, y=0.0, yaw=0.0):
+    return np.column_stack(np.broadcast_arrays(x, y, yaw, STEPS)[:3])
+
+
+@pytest.mark.parametrize(("poses", "stands"), [
+    (_poses(), True),
+    (_poses(x=0.03 * STEPS), False),                                     # 3 cm/s, steadily
+    (_poses(x=0.015 * STEPS), True),                                     # 1.5 cm/s: under 2 cm/s
+    (_poses(x=0.05 * np.abs(np.sin(2.0 * math.pi * STEPS))), True),      # back and forth at up to 0.3 m/s
+    (_poses(yaw=3.1 + 0.1 * STEPS), False),                              # 0.1 rad/s, through +-pi
+    (_poses(yaw=0.3 * np.sin(2.0 * math.pi * STEPS)), True),             # left and right at up to 1.9 rad/s
+])
+def test_a_robot_stands_when_it_got_nowhere_over_the_window_however_fast_it_shook(poses, stands):
+    poses[:, 2] = np.angle(np.exp(1j * poses[:, 2]))                     # yaw as a pose holds it
+    stood = stationary(poses, STEPS, 0.02, 0.05, 1.0)
+    assert stood[0]                                                      # the first pose has no past
+    later = stood[STEPS >= 1.0]                                          # a full window behind it
+    assert np.mean(later) >= 0.95 if stands else not later.any()
 
 
 
