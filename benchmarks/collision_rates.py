@@ -12,7 +12,8 @@ faces the same episodes.
 Per cell: episodes, collisions, collision rate with a 95 % Wilson interval, minimum body
 clearance (min, 5th percentile, median over the episodes), mean intervention ||u - u_nom||,
 distance travelled or goal progress, goal success and time to goal, stuck time (the nominal
-wants to move and the robot does not), fallbacks, the filter's call time p50/p99 pooled over
+wants to move and the robot gets nowhere: over the last second, under 2 cm and 0.05 rad a second, so that
+shaking back and forth in place counts), fallbacks, the filter's call time p50/p99 pooled over
 the cell, and liveness (``safenav.episode.liveness``): episodes with a deadlock longer than 5 s
 (the commands keep under a tenth of the nominal's progress; a failed escape counts), mean
 deadlocked time, escapes succeeded / started, chatter (mean |Δω|/dt of the commands) and sign

@@ -77,7 +77,8 @@ def cell_record(cell: Cell, robot: str, metrics: Sequence[EpisodeMetrics],
         * ``distance``: mean path length [m]; ``progress``: the mean goal progress [m] where there is
           a goal, else the mean distance (``progress_kind`` says which);
         * ``goal_success``, ``goal_reached``, ``time_to_goal`` (``mean``, ``median`` over the successes [s]);
-        * ``stuck_time``: mean time the nominal wanted to move and the robot did not [s], and
+        * ``stuck_time``: mean time the nominal wanted to move and the robot did not
+          (:attr:`safenav.episode.EpisodeConfig.stuck_speed`) [s], and
           ``stuck_fraction`` of the episode time;
         * ``fallbacks``: periods in which the filter braked because its optimiser failed (total);
         * ``deadlocked_episodes``, ``deadlock_rate`` and its Wilson 95 % interval ``deadlock_rate_ci``:

@@ -46,20 +46,20 @@ nominal by an escape command until the nominal's way is clear again:
    corridor, among the current and remembered points, is free the longest, up to the following
    distance short of its end, or as far as the filter lets it; then it follows again.
 5. **Through a gap.** While following, a corridor within ``gap_window`` of the m-line (below), clear for twice
-   ``clear_distance`` (it leads somewhere) and with obstacle points on both sides near it (within ``gap_band``
-   of its edges: a passage, a door, not open floor), is a gap the body fits through: the escape turns into it,
-   aims through its middle, drives ``clear_distance`` along it, then hands back (if the filter blocks it, it
-   follows on and looks again after ``gap_retry``). A gap that leads back to a place where a deadlock began (6.:
-   one lies ahead along it, within twice ``clear_distance`` and twice ``clear_half_width`` of its centre line)
-   is not taken: the next deadlock's escape would take the gap the last one came through. Meanwhile it sets the
-   wrapped filter's ``passage``, so that a filter that trades room for steering uses its narrow settings (the
-   CBF its ``min_lookahead``; never a weaker guarantee). Gaps are looked for with the body's corridor first,
-   then with the filter's narrow body's (``gap_half_width``: the CBF's and the MPC's cover of a long robot's
-   footprint); through a gap only that one fits, or one where the filter holds the body (the range noise takes
-   what the scan showed to spare), it also sets the filter's ``narrow``, and the filter keeps the footprint
-   clear with the narrow body's rows or plans (its guarantee is the footprint's either way). It sets it too
-   while it turns in place (3. and the gap's turns): the CBF's control point ahead of the body swings sideways
-   in a turn, and between two obstacles it can forbid both turns while the body itself would move nowhere.
+   ``clear_distance`` (it leads somewhere) and with obstacle points on both sides near it (within ``gap_band`` of
+   its edges: a passage, a door, not open floor), is a gap the body fits through: the escape turns into it, aims
+   through its middle, drives ``clear_distance`` along it, then hands back (if the filter blocks it, it follows on
+   and looks again after ``gap_retry``). A gap that leads back to a place where a deadlock began (6.: one lies ahead
+   along it, within twice ``clear_distance``, and within twice ``clear_half_width`` of its centre line or
+   :data:`SPOT_CONE` of it) is not taken: the next deadlock's escape would take the gap the last one came through.
+   Meanwhile it sets the wrapped filter's ``passage``, so that a filter that trades room for steering uses its
+   narrow settings (the CBF its ``min_lookahead``; never a weaker guarantee). Gaps are looked for with the body's
+   corridor first, then with the filter's narrow body's (``gap_half_width``: the CBF's and the MPC's cover of a long
+   robot's footprint); through a gap only that one fits, or one where the filter holds the body (the range noise
+   takes what the scan showed to spare), it also sets the filter's ``narrow``, and the filter keeps the footprint
+   clear with the narrow body's rows or plans (its guarantee is the footprint's either way). It sets it too while it
+   turns in place (3. and the gap's turns): the CBF's control point ahead of the body swings sideways in a turn, and
+   between two obstacles it can forbid both turns while the body itself would move nowhere.
 6. **Leave** after at least ``min_time`` when the way is clear, either along the m-line (the way
    the nominal was heading for when the deadlock began, the chord of its arc over one second, not
    the robot's heading, which the stall may have swung; tracked by the odometry pose when the caller
@@ -630,14 +630,15 @@ class Escape:
     def _back(self, directions: np.ndarray) -> np.ndarray:
         """Which base-frame ``directions`` [rad] lead back to a place where a deadlock began: one lies ahead
         along them, beyond ``clear_half_width`` and within twice ``clear_distance``, and within twice
-        ``clear_half_width`` of their centre line. A gap that leads there is not taken: after a gap that led
-        sideways with the way still blocked, the next deadlock's escape took the same gap back, to and fro
-        between two obstacles."""
+        ``clear_half_width`` of their centre line or :data:`SPOT_CONE` of it (as :meth:`_needed` counts a way that
+        passes such a place: the obstacle that blocked the robot there stretches round it). A gap that leads there
+        is not taken: after a gap that led sideways with the way still blocked, the next deadlock's escape took the
+        same gap back, to and fro between two obstacles."""
         if not self._spots:
             return np.zeros(len(directions), dtype=bool)
         along, across = self._spot_offsets(directions)
         near = (along > self.clear_half_width) & (along < 2.0 * self.config.clear_distance) & \
-            (np.abs(across) < 2.0 * self.clear_half_width)
+            (np.abs(across) < np.maximum(2.0 * self.clear_half_width, SPOT_CONE * along))
         return near.any(axis=0)
 
     def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray, length: float | None = None) -> np.ndarray:

@@ -617,6 +617,27 @@ def test_the_side_is_not_towards_an_opening_that_leads_back_to_where_a_deadlock_
     assert sides == [1, -1, 1]
 
 
+@pytest.mark.parametrize(("along", "off", "back"), [
+    (1.0, 0.0, True),         # on the way's centre line
+    (0.66, 0.28, True),       # beside it, just beyond twice the half-width (0.275 m), within 30 degrees of it
+    (1.0, 0.6, False),        # 31 degrees off it
+    (0.1, 0.0, False),        # not ahead of the body
+    (2.1, 0.0, False),        # beyond twice clear_distance
+])
+def test_a_way_leads_back_to_where_a_deadlock_began_when_that_place_lies_ahead_within_30_degrees_of_it(
+        along, off, back):
+    """goal_puzzlebot seed 11: the second deadlock, at the far end of the box that held the first, saw an opening
+    3 degrees right of its heading, 0.66 m short of where the first deadlock began and 0.28 m beside it, took its
+    side from it and went back round the box to that place (twice the Puzzlebot's corridor half-width is 0.275 m).
+    A way passes such a place as :meth:`Escape._needed` counts it: within twice the half-width of its centre line
+    or 30 degrees of it."""
+    escape = Escape(CBFSafetyFilter(preset("puzzlebot"), 0.05))
+    assert escape.clear_half_width == pytest.approx(0.1375, abs=1e-3)
+    for side in (1.0, -1.0):
+        escape._spots = [np.array([along, side * off])]
+        assert escape._back(np.array([0.0])).tolist() == [back]
+
+
 @pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
 def test_following_turns_away_from_the_obstacle_ahead_on_the_chosen_side_before_it_follows_another(make):
     """A pole ahead-right, close but outside the corridor straight ahead, and one behind-left: with the side
