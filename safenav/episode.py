@@ -249,8 +249,8 @@ def stationary(poses: np.ndarray, times: np.ndarray, speed: float, turn: float, 
     """Whether the robot stood at each pose, by where it was ``window`` [s] earlier.
 
     The robot stood at pose ``k`` when, against the pose at ``max(times[k] - window, times[0])``,
-    its base is less than ``speed`` times the time between them away and faces less than ``turn``
-    times that time away.
+    its base is at most ``speed`` times the time between them away and faces at most ``turn`` times
+    that time away.
 
     Args:
         poses: ``(K, 3)`` base poses ``(x, y, yaw)`` [m, m, rad], in time order.
