@@ -28,16 +28,17 @@ nominal by an escape command until the nominal's way is clear again:
    :data:`SIDE_DEADBAND` of ``omega_max``: not the sign of a rounding error), else left. An opening
    that leads back to a place where a deadlock began (5.) does not choose the side: the second
    deadlock beside a box went round it towards its far end, back to where the first began.
-3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle
-   with it on the other side (its nearest current or remembered point there, or ahead within the
-   following distance on either side: the obstacle faced obliquely at the start is still on the
-   chosen side; a lidar that does not look back loses an obstacle's end as the robot goes round
-   it), holding ``follow_distance`` beyond the
-   margin; turn in place towards the chosen side when something is ahead, or when the filter blocks
-   the following (for one period while the robot still moves, creeping or turning; when it stands
-   still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one
-   period's turn, at the acceleration limit, barely starts, and going back to following at once
-   kept a robot held by its remembered points turning a degree every third of a second).
+3. **Follow the boundary.** Drive at ``speed`` (a fraction of ``v_max``) along the obstacle with it on the other
+   side (its nearest current or remembered point there, or ahead within the following distance on either side: the
+   obstacle faced obliquely at the start is still on the chosen side; a lidar that does not look back loses an
+   obstacle's end as the robot goes round it), holding ``follow_distance`` beyond the margin, its yaw rate twice the
+   heading error averaged with the last one it asked while following (the nearest point jumps with the range noise
+   and from one obstacle to the next; each change of the base's yaw rate adds to the dead-reckoning bound of
+   remembered points, A5 of docs/safety.md); turn in place towards the chosen side when something is ahead, or when
+   the filter blocks the following (for one period while the robot still moves, creeping or turning; when it stands
+   still, until the base has turned ``stall_turn``, unless the filter blocks the turn too: one period's turn, at the
+   acceleration limit, barely starts, and going back to following at once kept a robot held by its remembered points
+   turning a degree every third of a second).
 4. **Back out** when forward is blocked and the rear is seen and free (by a lidar now, or, behind a lidar
    that does not look back, by earlier scans: the wrapped filter's
    :attr:`~safenav.filters.SafetyFilter.blind_travel`). **Drive out of a pocket**
@@ -250,6 +251,7 @@ class Escape:
         self._out_left = 0.0    # distance still to drive along it [m]
         self._held = 0.0        # how long the filter has held back a clear forward request [s]
         self._standing = 0.0    # how long the robot has stood while the nominal asked to drive straight on [s]
+        self._follow_omega = 0.0   # the yaw rate the last following command asked for [rad/s]
         self._started_by = ""   # why the current escape started (the reason says it)
         self._odometry = Pose2D()        # the base's pose since the reset (odometry, else the commands) [m, m, rad]
         self._spots: list[np.ndarray] = []   # where deadlocks began, in the frame of _odometry [m]
@@ -303,7 +305,7 @@ class Escape:
         self._side, self._elapsed, self._backing, self._last_side, self._start_yaw = 0, 0.0, 0.0, 0, 0.0
         self._since, self._stalled, self._still, self._turn_left = math.inf, 0.0, 0.0, 0.0
         self._gap, self._gap_left, self._gap_wait, self._held, self._standing = None, 0.0, 0.0, 0.0, 0.0
-        self._spun, self._out, self._out_left = 0.0, None, 0.0
+        self._spun, self._out, self._out_left, self._follow_omega = 0.0, None, 0.0, 0.0
         self._odometry, self._spots, self._pending, self._blocking, self._started_by = Pose2D(), [], False, None, ""
 
     def __call__(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
@@ -437,7 +439,7 @@ class Escape:
         self._still, self._turn_left = 0.0, 0.0
         self._start_yaw = self._odometry.yaw + intent      # the m-line: where the nominal was heading for
         self._gap, self._gap_left, self._gap_wait, self._held, self._standing = None, 0.0, 0.0, 0.0, 0.0
-        self._spun, self._out, self._out_left = 0.0, None, 0.0
+        self._spun, self._out, self._out_left, self._follow_omega = 0.0, None, 0.0, 0.0
         self._spots = [*self._spots, np.array(self._odometry[:2])][-SPOTS:]
 
     def _move(self, command: np.ndarray, held: float) -> None:
@@ -562,8 +564,8 @@ class Escape:
         tangent = wrap_angle(bearing + side * 0.5 * math.pi)      # the obstacle stays on the other side
         correction = float(np.clip((keep - float(distance[nearest])) / keep, -1.0, 1.0)) * side * 0.5
         heading_error = float(wrap_angle(tangent + correction))
-        omega = float(np.clip(2.0 * heading_error, -turn, turn))
-        return np.array([speed * max(math.cos(heading_error), 0.2), omega])
+        self._follow_omega = 0.5 * (float(np.clip(2.0 * heading_error, -turn, turn)) + self._follow_omega)
+        return np.array([speed * max(math.cos(heading_error), 0.2), self._follow_omega])
 
     def _steer(self, heading: float, speed: float, turn: float) -> np.ndarray:
         """Towards ``heading`` (off the m-line) [rad]: turn at twice the error, at most ``turn`` [rad/s],

@@ -654,8 +654,33 @@ def test_following_turns_away_from_the_obstacle_ahead_on_the_chosen_side_before_
     points = scan.points()
     escape._start(np.array([robot.v_max, -1.0]), (scan,), points, tuple(near))
     escape._side, escape._gap_wait = -1, escape.config.gap_retry      # right, and following (no gap search now)
-    command = escape._command(points, points, (scan,))
-    assert command[1] < -0.5 * escape.config.turn * robot.omega_max, command
+    turns = [float(escape._command(points, points, (scan,))[1]) for _ in range(3)]
+    assert turns[0] < 0.0 and turns[-1] < -0.5 * escape.config.turn * robot.omega_max, turns
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+def test_the_followers_yaw_rate_moves_halfway_to_its_aim_each_period(make):
+    """The follower aims at twice its heading error and asks each period for the mean of that aim and its last ask:
+    the nearest point jumps with the range noise and from one obstacle to the next, and every change of the base's
+    yaw rate widens the dead-reckoning bound of remembered points (A5). Followed for six periods on one side of the
+    robot, a pole then shows on the other: the ask moves half the way to the new aim (a fresh escape's first ask,
+    from zero, is half its aim); it jumped all the way before."""
+    robot = preset("rosbot")
+    limit = EscapeConfig().turn * robot.omega_max
+    scans = [synthetic_scan(robot, Scene.of(Circle((0.3, side * 0.35), 0.05))) for side in (-1, 1)]
+
+    def following(make_filter):
+        escape = Escape(make_filter(robot, 0.05))
+        escape._start(np.array([robot.v_max, 0.0]), (scans[0],), scans[0].points(), None)
+        escape._side, escape._gap_wait = -1, escape.config.gap_retry     # following (no gap search now)
+        return escape
+
+    fresh = following(make)
+    aim = 2.0 * float(fresh._command(scans[1].points(), scans[1].points(), (scans[1],))[1])
+    escape = following(make)
+    asks = [float(escape._command(scan.points(), scan.points(), (scan,))[1]) for scan in (scans[0],) * 6 + (scans[1],)]
+    assert abs(aim) <= limit + 1e-12 and abs(aim - asks[-2]) > 0.25 * limit, (aim, asks)   # a new aim
+    assert asks[-1] == pytest.approx(0.5 * (aim + asks[-2]))
 
 
 @pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
