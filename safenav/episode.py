@@ -44,7 +44,7 @@ from safenav._checks import boolean, positive
 from safenav.errors import InvalidConfig
 from safenav.filters import FilterResult, FilterStatus, SafetyFilter
 from safenav.filters.base import STALL_PROGRESS, STILL
-from safenav.geometry import Pose2D
+from safenav.geometry import Pose2D, wrap_angle
 from safenav.reference import Policy
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
@@ -268,7 +268,7 @@ def stationary(poses: np.ndarray, times: np.ndarray, speed: float, turn: float, 
     start = np.searchsorted(times, times - window - 1e-9)
     span = times - times[start]
     travelled = np.hypot(*(poses[:, :2] - poses[start, :2]).T)
-    turned = np.abs(np.angle(np.exp(1j * (poses[:, 2] - poses[start, 2]))))
+    turned = np.abs(wrap_angle(poses[:, 2] - poses[start, 2]))
     return (travelled <= speed * span) & (turned <= turn * span)
 
 

@@ -10,6 +10,7 @@ import pytest
 from safenav import InvalidConfig, Pose2D, preset
 from safenav.episode import RESUME_TIME, EpisodeConfig, liveness, run_episode, stalled, stationary
 from safenav.filters import CBFSafetyFilter, ZonesFilter, make_filter
+from safenav.geometry import wrap_angle
 from safenav.reference import GoToGoal, Policy, RandomWalk
 from safenav.robot import Command
 from safenav.worlds import Wall, World, random_world, tutorial_world
@@ -151,7 +152,7 @@ def _poses(x=0.0, y=0.0, yaw=0.0):
     (_poses(yaw=0.3 * np.sin(2.0 * math.pi * STEPS)), True),             # left and right at up to 1.9 rad/s
 ])
 def test_a_robot_stands_when_it_got_nowhere_over_the_window_however_fast_it_shook(poses, stands):
-    poses[:, 2] = np.angle(np.exp(1j * poses[:, 2]))                     # yaw as a pose holds it
+    poses[:, 2] = wrap_angle(poses[:, 2])                                # yaw as a pose holds it
     stood = stationary(poses, STEPS, 0.02, 0.05, 1.0)
     assert stood[0]                                                      # the first pose has no past
     later = stood[STEPS >= 1.0]                                          # a full window behind it

@@ -454,13 +454,13 @@ class Escape:
     def _needed(self, direction: float) -> float:
         """How far the base-frame ``direction`` [rad] must be clear to hand back [m]: ``clear_distance``, or
         ``clear_distance`` beyond the farthest place where a deadlock began that a corridor along it passes
-        (within twice ``clear_half_width`` of its centre line): the way must be clear past where the robot
+        (ahead and :meth:`_beside` it): the way must be clear past where the robot
         got stuck, not just up to the trap's mouth (a bug algorithm's leave condition)."""
         length = self.config.clear_distance
         if not self._spots:
             return length
         along, across = self._spot_offsets(np.array([direction]))
-        passed = (along > 0.0) & (np.abs(across) < np.maximum(2.0 * self.clear_half_width, SPOT_CONE * along))
+        passed = (along > 0.0) & self._beside(along, across)
         return max(length, float(along[passed].max()) + length) if passed.any() else length
 
     def _spot_offsets(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -639,9 +639,14 @@ class Escape:
         if not self._spots:
             return np.zeros(len(directions), dtype=bool)
         along, across = self._spot_offsets(directions)
-        near = (along > self.clear_half_width) & (along < 2.0 * self.config.clear_distance) & \
-            (np.abs(across) < np.maximum(2.0 * self.clear_half_width, SPOT_CONE * along))
-        return near.any(axis=0)
+        ahead = (along > self.clear_half_width) & (along < 2.0 * self.config.clear_distance)
+        return (ahead & self._beside(along, across)).any(axis=0)
+
+    def _beside(self, along: np.ndarray, across: np.ndarray) -> np.ndarray:
+        """Whether places ``along`` a way and ``across`` it [m] lie beside it: within twice ``clear_half_width`` of
+        its centre line or :data:`SPOT_CONE` of it (an obstacle that blocked the robot at such a place stretches round
+        it, and a way aimed at it from afar runs into the same obstacle). :meth:`_needed` and :meth:`_back` both ask."""
+        return np.abs(across) < np.maximum(2.0 * self.clear_half_width, SPOT_CONE * along)
 
     def _seen(self, scans: tuple[LaserScan, ...], directions: np.ndarray, length: float | None = None) -> np.ndarray:
         """Which base-frame ``directions`` [rad] some lidar looks along now, at least partly, over a corridor
