@@ -24,6 +24,9 @@ command ``u``): ``instant`` (``w = u``), ``ramp`` (linear from ``w0`` to ``u`` o
 period), ``ramp_limit`` (towards ``u`` at the acceleration limits, then held), ``lag``
 (first order, ``w = u + (w0 - u) exp(-t / tau)``, ``tau = dt``). Without odometry
 (``velocity`` not given to the filter) only the instant base is inside the assumptions.
+With ``--odometry`` every cell given the velocity is searched again with the odometry pose
+given too (``pose=``, as the ROS nodes pass it), in a frame of its own far from the origin and
+turned so that the heading crosses the wrap at ``+-pi`` as the robot turns.
 """
 
 from __future__ import annotations
@@ -95,6 +98,8 @@ class Episode:
         base: base model (one of :data:`BASES`).
         dt: control period [s].
         give_velocity: pass the measured velocity to the filter (odometry).
+        odometry_frame: ``(x [m], y [m], yaw [rad])`` of the start pose in the odometry frame whose pose
+            the filter is given (``pose=``, exact; its yaw wrapped into ``[-pi, pi)``); empty: no pose.
         circles: ``(x, y, radius)`` poles in the start pose's base frame [m].
         segments: ``(x0, y0, x1, y1)`` walls in the start pose's base frame [m].
         nominal: one of :data:`NOMINALS`.
@@ -119,6 +124,7 @@ class Episode:
     base: str
     dt: float
     give_velocity: bool = True
+    odometry_frame: tuple[float, ...] = ()
     circles: tuple[tuple[float, float, float], ...] = ()
     segments: tuple[tuple[float, float, float, float], ...] = ()
     nominal: str = "arc"
@@ -142,7 +148,7 @@ class Episode:
         for name in ("circles", "segments"):
             if name in data:
                 data[name] = tuple(tuple(item) for item in data[name])
-        for name in ("params", "velocity", "passage"):
+        for name in ("params", "velocity", "passage", "odometry_frame"):
             if name in data:
                 data[name] = tuple(data[name])
         return cls(**data)
@@ -446,6 +452,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     policy = nominal_policy(episode, robot)
     rng = np.random.default_rng(episode.seed)
     pose = Pose2D()
+    frame = Pose2D(*episode.odometry_frame) if episode.odometry_frame else Pose2D()
     velocity = np.clip(np.asarray(episode.velocity, dtype=float), robot.lower, robot.upper)
     radius = robot.radius
     footprint = None
@@ -477,7 +484,12 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
             passage_period, duty = episode.passage
             safety.passage = (t % passage_period) < duty * passage_period
             safety.narrow = safety.passage and narrow
-        result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t)
+        odometry = None
+        if episode.odometry_frame:
+            odometry = frame.compose(pose)
+            odometry = (odometry.x, odometry.y, float(wrap_angle(odometry.yaw)))
+        result = safety.filter(u_nom, scan, velocity=velocity if episode.give_velocity else None, now=t,
+                               pose=odometry)
         if step == 0:
             start_barrier = min(result.min_barrier, min_clearance - margin)
             start_status = result.status.value
@@ -551,11 +563,13 @@ def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
 
 def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
-           settings: dict[str, Any] | None = None) -> Episode:
+           settings: dict[str, Any] | None = None, give_pose: bool = False) -> Episode:
     """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
 
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
-    and 17 of the vector choose (so one search covers them all).
+    and 17 of the vector choose (so one search covers them all). With ``give_pose`` the filter is
+    given the odometry pose too, in a frame up to 1 km from the start whose heading starts within
+    0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door).
     """
     spec = robot_spec(robot)
     R = spec.radius
@@ -632,7 +646,12 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
     # The filter's passage flag (the CBF's narrow look-ahead), switched by the adversary: never, or for a
     # share of every period of 0.05-2 s.
     passage = () if u[18] < 0.25 else (0.05 + 1.95 * u[19], (u[18] - 0.25) / 0.75)
+    odometry_frame: tuple[float, ...] = ()
+    if give_pose:
+        odometry_frame = (2000.0 * (u[9] - 0.5), 2000.0 * (u[11] - 0.5),
+                          (math.pi - 0.3 * u[10]) * (1.0 if u[10] > 0.5 else -1.0))
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
+                   odometry_frame=odometry_frame,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
                    seed=int(1e6 * u[0]) % 10_000, settings=settings, passage=passage)
@@ -806,9 +825,11 @@ def body_half_width(spec: RobotSpec, body: str) -> float:
 def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases: Sequence[str], dts: Sequence[float],
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
-           min_obstacle_width: float | None = None, narrow_body: str | None = None) -> list[dict[str, Any]]:
+           min_obstacle_width: float | None = None, narrow_body: str | None = None,
+           odometry: bool = False) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
-    odometry for the instant base); the geometry and the nominal are searched inside each. With
+    odometry for the instant base; with ``odometry`` each cell given the velocity again with the odometry pose
+    too, after all the others); the geometry and the nominal are searched inside each. With
     ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
     ``narrow_body`` every CBF and MPC cell of a disk body on a robot with a footprint gets it (CBFConfig and
     MPCConfig.narrow_body; the MPC's only narrow body is the cover), and the adversary sets its ``narrow`` flag."""
@@ -832,6 +853,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                             cells.append(dict(robot=robot, filter_name=filter_name, base=base, dt=dt,
                                               give_velocity=give_velocity, geometry=tuple(geometries),
                                               nominal=tuple(nominals), settings=dict(settings)))
+    if odometry:    # appended: the cells without the pose keep their indices (and so their seeds)
+        cells += [dict(cell, give_pose=True) for cell in cells if cell["give_velocity"]]
     return cells
 
 
@@ -861,7 +884,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
                      *([f"{settings['reference']}-reference"] if "reference" in settings else []),
                      *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else []),
                      *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else []),
-                     *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else [])))
+                     *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else []),
+                     *(["pose"] if cell.get("give_pose") else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -916,6 +940,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         help="name the CBF and MPC cells' body for gaps (disk body, robots with a footprint; "
                              "CBFConfig/MPCConfig.narrow_body, the default cover) and let the adversary set their "
                              "narrow flag with the passage flag (the MPC has only the cover)")
+    parser.add_argument("--odometry", action="store_true",
+                        help="also search every cell given the velocity with the odometry pose given too "
+                             "(pose=, as the ROS nodes pass it; a frame far from the origin whose heading crosses "
+                             "the wrap at +-pi)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -940,7 +968,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
                    args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
-                   args.narrow_body)
+                   args.narrow_body, args.odometry)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()
