@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import math
@@ -362,6 +363,27 @@ def _two_doors(robot: RobotSpec, escape: Escape) -> tuple[LaserScan, list[float]
 def _beyond(bearing: float) -> np.ndarray:
     """Where a deadlock beyond the door at ``bearing`` [rad] would have begun (base frame) [m]."""
     return 1.6 * np.array([math.cos(bearing), math.sin(bearing)])
+
+
+@pytest.mark.parametrize("robot", ["rosbot", "m2wr"])
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
+def test_given_the_odometry_pose_the_escape_and_the_filter_do_the_same_in_any_odometry_frame(robot, filter_name):
+    """The ROS nodes pass the odometry pose (``pose=``), in whatever frame the odometry keeps: the filter carries its
+    memory, and the escape its m-line and the places where deadlocks began, by the pose's change, so the frame
+    must not matter. Out of the U-shaped trap (the ROSbot's way out needs the place where it deadlocked; the m2wr
+    remembers what its 180-degree lidar no longer sees) in the robot's own frame, and in frames 1 km away whose
+    heading starts just short of +pi and just past -pi (its turns cross the wrap): the same commands to rounding,
+    the same escape, the goal reached without contact."""
+    episode = dataclasses.replace(trap_facing_the_goal(robot, filter_name), odometry_frame=(0.0, 0.0, 0.0))
+    reference, reference_log = run(episode, record=True)
+    assert reference.goal_distance < 0.3 and reference.escape_steps > 0 and not reference.contact
+    for frame in ((1000.0, -700.0, math.pi - 0.01), (-3.0, 5.0, -math.pi + 0.002)):
+        outcome, log = run(dataclasses.replace(episode, odometry_frame=frame), record=True)
+        assert not outcome.contact and outcome.goal_distance < 0.3, frame
+        assert outcome.escape_steps == reference.escape_steps, (frame, outcome.escape_steps, reference.escape_steps)
+        assert abs(outcome.min_clearance - reference.min_clearance) < 1e-3, frame
+        turned = [row["u"][1] for row in log]
+        assert max(abs(a - b) for a, b in zip(turned, (row["u"][1] for row in reference_log), strict=True)) < 0.01
 
 
 @pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])

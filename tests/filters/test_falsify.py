@@ -35,10 +35,13 @@ CELLS = [
     # The CBF's narrow body, switched on and off by the adversary: the guarantee is the footprint's.
     dict(robot="rosbot", filter_name="cbf", base="lag", dt=0.05, give_velocity=True,
          settings={"narrow_body": "cover"}),
+    # The odometry pose as the ROS nodes pass it, in a frame far away whose heading crosses the wrap at +-pi.
+    dict(robot="m2wr", filter_name="mpc+escape", base="ramp_limit", dt=0.05, give_velocity=True, give_pose=True),
 ]
 
 
-@pytest.mark.parametrize("cell", CELLS, ids=lambda cell: f"{cell['robot']}-{cell['filter_name']}-{cell['base']}")
+@pytest.mark.parametrize("cell", CELLS, ids=lambda cell: f"{cell['robot']}-{cell['filter_name']}-{cell['base']}"
+                                                     f"{'-pose' if cell.get('give_pose') else ''}")
 def test_short_adversarial_search_finds_no_violation(cell):
     cell = dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS)
     margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
@@ -56,6 +59,11 @@ def test_an_episode_replays_from_its_json_line_exactly():
     again = Episode.from_json(episode.to_json())
     assert again == episode
     assert run(again)[0] == run(episode)[0]
+    posed = decode([0.3] * 9 + [0.9, 0.8, 0.1] + [0.3] * 6 + [0.8, 0.3], robot="m2wr", filter_name="cbf",
+                   base="lag", dt=0.05, give_velocity=True, geometry="poles", nominal="bang_bang", margin=0.04,
+                   give_pose=True)
+    assert posed.odometry_frame == pytest.approx((800.0, -800.0, math.pi - 0.24))   # near the wrap, far away
+    assert Episode.from_json(posed.to_json()) == posed
 
 
 def test_the_adversary_switches_the_cbfs_passage_flag():
