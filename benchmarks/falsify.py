@@ -26,7 +26,10 @@ period), ``ramp_limit`` (towards ``u`` at the acceleration limits, then held), `
 (``velocity`` not given to the filter) only the instant base is inside the assumptions.
 With ``--odometry`` every cell given the velocity is searched again with the odometry pose
 given too (``pose=``, as the ROS nodes pass it), in a frame of its own far from the origin and
-turned so that the heading crosses the wrap at ``+-pi`` as the robot turns.
+turned so that the heading crosses the wrap at ``+-pi`` as the robot turns. With ``--latencies``
+the cells are searched again with every scan that old: taken where the robot was that long
+before the call, stamped then, and the filter told the time (``now``), as a ROS driver's scans
+arrive.
 """
 
 from __future__ import annotations
@@ -58,7 +61,7 @@ from safenav.filters import filter_settings, make_filter, unescaped
 from safenav.filters.body import BodyModel
 from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
-from safenav.geometry import Pose2D, unicycle_rollout, wrap_angle
+from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, preset
 from safenav.scan import LaserScan
 from safenav.synthetic import Circle, Scene, Segment, cast
@@ -98,6 +101,8 @@ class Episode:
         base: base model (one of :data:`BASES`).
         dt: control period [s].
         give_velocity: pass the measured velocity to the filter (odometry).
+        latency: how old every scan is when the filter gets it [s]: taken where the robot was then (before the
+            start, where a robot that had held the start velocity was), stamped then; the filter is told ``now``.
         odometry_frame: ``(x [m], y [m], yaw [rad])`` of the start pose in the odometry frame whose pose
             the filter is given (``pose=``, exact; its yaw wrapped into ``[-pi, pi)``); empty: no pose.
         circles: ``(x, y, radius)`` poles in the start pose's base frame [m].
@@ -125,6 +130,7 @@ class Episode:
     dt: float
     give_velocity: bool = True
     odometry_frame: tuple[float, ...] = ()
+    latency: float = 0.0
     circles: tuple[tuple[float, float, float], ...] = ()
     segments: tuple[tuple[float, float, float, float], ...] = ()
     nominal: str = "arc"
@@ -476,9 +482,22 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     steps = round(episode.duration / period)
     h = period / SUBSTEPS
     clearance = min_clearance
+    # Every sub-step's start pose and velocity, for where the robot was when a late scan was taken.
+    path_poses: list[Pose2D] = []
+    path_velocities: list[np.ndarray] = []
+
+    def pose_at(time: float) -> Pose2D:
+        if time <= 0.0:     # before the start the robot held the start velocity, and got to the start pose
+            return unicycle_step(Pose2D(), -float(velocity_start[0]), -float(velocity_start[1]), -time)
+        index = min(int(time / h), len(path_poses) - 1)
+        held = path_velocities[index]
+        return unicycle_step(path_poses[index], float(held[0]), float(held[1]), time - index * h)
+
+    velocity_start = velocity.copy()
     for step in range(steps):
         t = step * period
-        scan = _scan(robot, scene, pose, episode.noise, rng, t)
+        taken = t - episode.latency
+        scan = _scan(robot, scene, pose if taken >= t else pose_at(taken), episode.noise, rng, taken)
         u_nom = policy(t, scan, pose)
         if episode.passage and not episode.escape:
             passage_period, duty = episode.passage
@@ -501,6 +520,9 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         command = np.asarray(result.u, dtype=float)
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
+        if episode.latency > 0.0:
+            path_poses.extend(Pose2D(*row) for row in poses[:-1])
+            path_velocities.extend(profile[:SUBSTEPS])
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
         clearances = truth(poses[1:])
         clearance = float(clearances[-1])
@@ -563,13 +585,14 @@ def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
 
 def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
-           settings: dict[str, Any] | None = None, give_pose: bool = False) -> Episode:
+           settings: dict[str, Any] | None = None, give_pose: bool = False, latency: float = 0.0) -> Episode:
     """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
 
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
     and 17 of the vector choose (so one search covers them all). With ``give_pose`` the filter is
     given the odometry pose too, in a frame up to 1 km from the start whose heading starts within
-    0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door).
+    0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door). ``latency``: every scan's age
+    [s] (:attr:`Episode.latency`).
     """
     spec = robot_spec(robot)
     R = spec.radius
@@ -651,7 +674,7 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
         odometry_frame = (2000.0 * (u[9] - 0.5), 2000.0 * (u[11] - 0.5),
                           (math.pi - 0.3 * u[10]) * (1.0 if u[10] > 0.5 else -1.0))
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
-                   odometry_frame=odometry_frame,
+                   odometry_frame=odometry_frame, latency=latency,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
                    seed=int(1e6 * u[0]) % 10_000, settings=settings, passage=passage)
@@ -826,10 +849,11 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
            min_obstacle_width: float | None = None, narrow_body: str | None = None,
-           odometry: bool = False) -> list[dict[str, Any]]:
+           odometry: bool = False, latencies: Sequence[float] = ()) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base; with ``odometry`` each cell given the velocity again with the odometry pose
-    too, after all the others); the geometry and the nominal are searched inside each. With
+    too, after all the others; then every cell again with each of ``latencies`` [s] as the scans' age); the
+    geometry and the nominal are searched inside each. With
     ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
     ``narrow_body`` every CBF and MPC cell of a disk body on a robot with a footprint gets it (CBFConfig and
     MPCConfig.narrow_body; the MPC's only narrow body is the cover), and the adversary sets its ``narrow`` flag."""
@@ -855,6 +879,7 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
                                               nominal=tuple(nominals), settings=dict(settings)))
     if odometry:    # appended: the cells without the pose keep their indices (and so their seeds)
         cells += [dict(cell, give_pose=True) for cell in cells if cell["give_velocity"]]
+    cells += [dict(cell, latency=float(latency)) for latency in latencies if latency > 0.0 for cell in list(cells)]
     return cells
 
 
@@ -885,7 +910,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
                      *([f"lookahead-{settings['lookahead']:g}"] if "lookahead" in settings else []),
                      *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else []),
                      *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else []),
-                     *(["pose"] if cell.get("give_pose") else [])))
+                     *(["pose"] if cell.get("give_pose") else []),
+                     *([f"latency-{cell['latency']:g}"] if cell.get("latency") else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -944,6 +970,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         help="also search every cell given the velocity with the odometry pose given too "
                              "(pose=, as the ROS nodes pass it; a frame far from the origin whose heading crosses "
                              "the wrap at +-pi)")
+    parser.add_argument("--latencies", nargs="+", type=argument_type(number, low=0.0, high=1.0), default=[],
+                        metavar="S", help="also search every cell with every scan this old [s] (taken where the "
+                                          "robot was then, stamped then; the filter is told the time)")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -968,7 +997,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
                    args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
-                   args.narrow_body, args.odometry)
+                   args.narrow_body, args.odometry, args.latencies)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()
