@@ -23,6 +23,7 @@ can skip one; the statuses and the result sit here with it.
 from __future__ import annotations
 
 import abc
+import collections
 import enum
 import math
 import time
@@ -79,6 +80,9 @@ STALL_PROGRESS = 0.1
 #: driving (a go-to-goal at its heading threshold) makes progress for a period now and then
 #: while the robot stays put, and one such period must not reset the deadlock clock.
 PROGRESS_RESET_TIME = 0.25
+#: How many periods of returned commands a filter keeps, to move a scan of known age into the current base frame
+#: without the velocity (its base then executes the commands, A5): 0.5 s (``scan_timeout``'s default) at 64 Hz.
+COMMAND_HISTORY = 32
 
 
 class FilterStatus(enum.Enum):
@@ -354,8 +358,9 @@ class SafetyFilter(abc.ABC):
         other_bodies: further body models the filter's rows may use (the CBF's ``narrow_body``): the
             reach of the farthest of them sets the stopping reach, the horizon and the memory.
         scan_timeout: largest scan age [s] the filter acts on; older scans make it brake.
-        compensate_latency: move a scan of known age into the current base frame using the
-            measured velocity before filtering.
+        compensate_latency: move a scan of known age into the current base frame before filtering: by the
+            measured velocity held since it was taken, or, without the velocity, by the commands this filter
+            returned since then (its base executes them, A5; at rest before the first call).
         max_gap: widest run of invalid beams bridged by its neighbours [rad].
         side_tolerance: unknown space this close to exactly sideways does not block motion [rad].
         memory_range: remembered points farther than this from the base are forgotten [m];
@@ -433,6 +438,8 @@ class SafetyFilter(abc.ABC):
         self._last_pose: Pose2D | None = None
         self._last_velocity: np.ndarray | None = None
         self._last_command = np.zeros(2)
+        #: The commands returned since the earlier calls and how long each was held [s], the latest last.
+        self._returned: collections.deque[tuple[float, np.ndarray]] = collections.deque(maxlen=COMMAND_HISTORY)
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
         #: Set by a caller while the robot drives through a passage the body fits with
@@ -521,6 +528,7 @@ class SafetyFilter(abc.ABC):
         self._last_pose = None
         self._last_velocity = None
         self._last_command = np.zeros(2)
+        self._returned.clear()
         self._called = False
         self._stalled = 0.0
         self._progressing = 0.0
@@ -573,6 +581,8 @@ class SafetyFilter(abc.ABC):
         period, clock_note = self._clock(now)
         base_note = self._check_base(current, period if period is not None else self.dt)
         self._carry(period if period is not None else self.dt, current, pose)
+        if self._called:   # the last command, held since the previous call
+            self._returned.append((period if period is not None else self.dt, self._last_command.copy()))
         result = self._screened(nominal, scans, current, scan_age, now, period,
                                 "; ".join(note for note in (clock_note, base_note) if note))
         result = self._watch_progress(result)
@@ -781,12 +791,36 @@ class SafetyFilter(abc.ABC):
         return _replace(result, **extras)
 
     def _compensated(self, scans: tuple[LaserScan, ...], velocity: np.ndarray | None,
-                     ages: Sequence[float | None]) -> tuple[LaserScan, ...]:
-        """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``)."""
-        if not self.compensate_latency or velocity is None:
+                     ages: Sequence[float | None], pending: tuple[float, np.ndarray] | None = None
+                     ) -> tuple[LaserScan, ...]:
+        """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``):
+        the velocity held since then, or without it the commands returned since then (``pending``: a period not yet
+        in the history, the last command held since the previous call, for a look before the call)."""
+        if not self.compensate_latency:
             return scans
-        return tuple(self.current_frame(scan, velocity, age) if age is not None and age > 0.0 else scan
+        if velocity is not None:
+            return tuple(self.current_frame(scan, velocity, age) if age is not None and age > 0.0 else scan
+                         for scan, age in zip(scans, ages, strict=True))
+        return tuple(scan.replace(mount=self._commanded_motion(age, pending).inverse().compose(scan.mount))
+                     if age is not None and age > 0.0 and (self._returned or pending) else scan
                      for scan, age in zip(scans, ages, strict=True))
+
+    def _commanded_motion(self, age: float, pending: tuple[float, np.ndarray] | None = None) -> Pose2D:
+        """The base's motion over the last ``age`` [s], executing the commands this filter returned (the base
+        without a velocity, A5): each held for its period, the latest first; at rest before the first call."""
+        periods = [*self._returned, *([pending] if pending is not None else [])]
+        arcs = []
+        left = float(age)
+        for held, command in reversed(periods):
+            if left <= 0.0:
+                break
+            part = min(float(held), left)
+            arcs.append(unicycle_step(Pose2D(), float(command[0]), float(command[1]), part))
+            left -= part
+        motion = Pose2D()
+        for arc in reversed(arcs):     # the oldest part first
+            motion = motion.compose(arc)
+        return motion
 
     def current_scans(self, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
                       scan_age: float | Sequence[float] | None = None, now: float | None = None
@@ -803,10 +837,16 @@ class SafetyFilter(abc.ABC):
         """
         scans = self._match(as_scans(scan))
         current = None if velocity is None else as_command(velocity, "velocity")
-        if current is None or not np.all(np.isfinite(current)):
+        if current is not None and not np.all(np.isfinite(current)):
             return scans
         ages, stale = self._ages(scans, scan_age, now)
-        return scans if stale else self._compensated(scans, current, ages)
+        pending = None
+        if current is None and self._called:    # the call appends the last command, held since the previous call
+            held = self.dt
+            if now is not None and self._last_time is not None and now >= self._last_time:
+                held = float(now) - self._last_time
+            pending = (held, self._last_command)
+        return scans if stale else self._compensated(scans, current, ages, pending)
 
     def _ages(self, scans: tuple[LaserScan, ...], scan_age: Any, now: float | None
               ) -> tuple[list[float | None], str]:

@@ -405,10 +405,12 @@ def test_a_gap_that_leads_back_to_where_a_deadlock_began_is_not_taken(make):
     assert escape._find_gap(known, scans) == pytest.approx(bearings[0], abs=math.radians(4.0))
 
 
-def _escape_points(filter_name: str, latency: bool) -> list[tuple[Pose2D, np.ndarray, int]]:
+def _escape_points(filter_name: str, latency: bool, with_velocity: bool = True
+                   ) -> list[tuple[Pose2D, np.ndarray, int]]:
     """Drive the m2wr with the escape towards a goal behind a wall, the odometry pose given (and with
-    ``latency``, each scan one period old, its age and the velocity given); every ``known`` array the escape's
-    command used, with the pose of that call and how many of its points are current."""
+    ``latency``, each scan one period old, its age given, and the velocity unless not ``with_velocity``: the base
+    executes each command at once, as the filters then assume); every ``known`` array the escape's command used,
+    with the pose of that call and how many of its points are current."""
     robot, dt = preset("m2wr"), 0.05       # a 180-degree lidar: the side of the wall it follows is remembered
     scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
     inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
@@ -427,8 +429,8 @@ def _escape_points(filter_name: str, latency: bool) -> list[tuple[Pose2D, np.nda
         goal = pose.to_local(np.array([[3.0, 0.0]]))[0]
         nominal = (min(0.5 * goal[0], robot.v_max), float(np.clip(2.0 * math.atan2(goal[1], goal[0]), -1.0, 1.0)))
         if latency:     # the base held `velocity` since the scan was taken: the filters' current_frame is exact
-            result = escape.filter(nominal, synthetic_scan(robot, scene, previous), velocity=velocity, pose=pose,
-                                   scan_age=dt)
+            result = escape.filter(nominal, synthetic_scan(robot, scene, previous), pose=pose, scan_age=dt,
+                                   velocity=velocity if with_velocity else None)
         else:
             result = escape.filter(nominal, synthetic_scan(robot, scene, pose), velocity=velocity, pose=pose)
         velocity = np.array(result.u)
@@ -457,11 +459,13 @@ def test_the_escape_sees_remembered_points_where_they_are_now(filter_name):
 
 
 @pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
-def test_the_escape_sees_an_old_scan_where_the_filter_does(filter_name):
-    """With ``scan_age`` and the velocity, the wrapped filter moves each scan into the current base frame
-    (``current_frame``); the escape looks at the same points (before, at the scan's own frame: off by the motion
-    since the scan, while the remembered points were in the current frame). As the ROS nodes call it."""
-    used = _escape_points(filter_name, latency=True)
+@pytest.mark.parametrize("with_velocity", [True, False])
+def test_the_escape_sees_an_old_scan_where_the_filter_does(filter_name, with_velocity):
+    """With ``scan_age`` the wrapped filter moves each scan into the current base frame, by the velocity
+    (``current_frame``) or without it by the commands it returned since the scan was taken; the escape looks at
+    the same points (before, at the scan's own frame: off by the motion since the scan, while the remembered
+    points were in the current frame). As the ROS nodes call it."""
+    used = _escape_points(filter_name, latency=True, with_velocity=with_velocity)
     assert len(used) > 20
     for at, off in _off_the_wall(used, 0):
         assert off < 1e-6, (at, off)

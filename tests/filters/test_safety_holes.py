@@ -447,6 +447,52 @@ def test_a_point_the_mpc_cannot_keep_clear_does_not_relax_the_rows_of_the_others
     assert_safe(Episode.from_json(FOUND_ON_ROBOTS[found]))
 
 
+
+# ------------------------------------------------------------------ a scan that arrives late, without the velocity
+
+
+#: Found by the falsifier's ``--latencies 0.1`` (seed 647): every scan 0.1 s old (taken where the robot was then,
+#: stamped then, the filter told the time), the ROSbot's MPC without the velocity (an instant base, A5), no compute
+#: budget so that they replay exactly. The filter moved a late scan into the current base frame only with the
+#: velocity; without it the scan was used as if taken now, and the robot drove up to 0.1 s of motion nearer
+#: than it saw: a contact (-3.0 cm against the margin) and five more 1.1-2.8 cm below it. Now the scan is moved
+#: by the commands the filter returned since it was taken: +1.1 to +1.3 cm.
+FOUND_LATE = json.loads((Path(__file__).resolve().parents[1] / "data" / "falsifier_latency.json").read_text())
+
+
+@pytest.mark.parametrize("found", sorted(FOUND_LATE))
+def test_a_late_scan_without_the_velocity_is_moved_by_the_commands_returned_since_it_was_taken(found):
+    assert_safe(Episode.from_json(FOUND_LATE[found]))
+
+
+@pytest.mark.parametrize("make", [CBFSafetyFilter, MPCSafetyFilter])
+@pytest.mark.parametrize("age_periods", [1, 2, 3])
+def test_without_the_velocity_a_late_scan_is_where_the_commands_returned_since_then_put_it(make, age_periods):
+    """A ROSbot driving at a wall, its base executing every command (the base the filters assume without the
+    velocity): a scan ``age_periods`` periods old, given its age, is moved by the commands the filter returned
+    since it was taken, so the filter sees the wall where a scan taken now shows it (the clearance it reports
+    equals that of the current scan to the beams' sampling), and as well when the scan comes with its stamp and
+    the time."""
+    robot, dt = preset("rosbot"), 0.05
+    scene = Scene.of(Segment((1.6, -2.0), (1.6, 2.0)), Circle((1.0, 0.6), 0.1))
+    late, fresh, stamped = make(robot, dt), make(robot, dt), make(robot, dt)
+    poses, pose = [], filters_base.Pose2D()
+    for step in range(12):
+        poses.append(pose)
+        t = step * dt
+        taken = poses[max(step - age_periods, 0)]
+        nominal = (0.6, 0.4 * math.sin(3.0 * t))
+        old = synthetic_scan(robot, scene, taken)
+        result = late.filter(nominal, old, scan_age=dt * min(step, age_periods))
+        other = stamped.filter(nominal, old.replace(stamp=t - dt * min(step, age_periods)), now=t)
+        now = fresh.filter(nominal, synthetic_scan(robot, scene, pose))
+        if step > age_periods:
+            assert result.clearance == pytest.approx(now.clearance, abs=1e-3), step    # beams sample the wall
+            assert other.clearance == pytest.approx(now.clearance, abs=1e-3), step
+        np.testing.assert_allclose(other.u, result.u, atol=1e-9)
+        pose = filters_base.unicycle_step(pose, float(result.u[0]), float(result.u[1]), dt)
+
+
 def test_after_an_answer_that_needed_slack_per_point_the_next_call_solves_with_it_at_once():
     """A wall seen too late stays for many calls. The call after one whose answer needed more than
     ``SPLIT_SLACK`` solves with a slack per point at once (instead of one slack first, then again with one per
