@@ -319,7 +319,8 @@ class View(NamedTuple):
     points: np.ndarray
     """``(N, 2)`` obstacle points [m]: the current scans' first, then the remembered ones."""
     uncertainty: np.ndarray
-    """``(N,)`` position uncertainty of each point [m] (0 for current points)."""
+    """``(N,)`` position uncertainty of each point [m] (0 for the current scans' points, but those of a scan moved
+    into the current base frame by the measured velocities since it was taken, A5)."""
     n_current: int
     """How many of :attr:`points` the current scans' readings give (the first ones)."""
     frontier: Frontier
@@ -333,6 +334,19 @@ class View(NamedTuple):
     def horizon(self) -> np.ndarray:
         """``(K, 2)`` the points where what the lidars see ends [m] (none where the range is long enough)."""
         return self.points[self.n_current:self.n_current + self.n_horizon]
+
+
+class Period(NamedTuple):
+    """One period between two calls of a filter, as the next call knows it."""
+
+    held: float
+    """How long it lasted [s]."""
+    command: np.ndarray
+    """The command returned at its start [m/s, rad/s]."""
+    start: np.ndarray | None
+    """The velocity measured at its start [m/s, rad/s] (``None`` when not given)."""
+    end: np.ndarray | None
+    """The velocity measured at its end [m/s, rad/s] (``None`` when not given)."""
 
 
 def as_scans(scan: Any) -> tuple[LaserScan, ...]:
@@ -359,8 +373,9 @@ class SafetyFilter(abc.ABC):
             reach of the farthest of them sets the stopping reach, the horizon and the memory.
         scan_timeout: largest scan age [s] the filter acts on; older scans make it brake.
         compensate_latency: move a scan of known age into the current base frame before filtering: by the
-            measured velocity held since it was taken, or, without the velocity, by the commands this filter
-            returned since then (its base executes them, A5; at rest before the first call).
+            velocities measured since it was taken (the trapezoid of each period's two measurements, whose error
+            bound its points carry, A5), or, without the velocity, by the commands this filter returned since
+            then (its base executes them, A5; at rest before the first call); see :meth:`latent_motion`.
         max_gap: widest run of invalid beams bridged by its neighbours [rad].
         side_tolerance: unknown space this close to exactly sideways does not block motion [rad].
         memory_range: remembered points farther than this from the base are forgotten [m];
@@ -438,8 +453,10 @@ class SafetyFilter(abc.ABC):
         self._last_pose: Pose2D | None = None
         self._last_velocity: np.ndarray | None = None
         self._last_command = np.zeros(2)
-        #: The commands returned since the earlier calls and how long each was held [s], the latest last.
-        self._returned: collections.deque[tuple[float, np.ndarray]] = collections.deque(maxlen=COMMAND_HISTORY)
+        #: Each period since the earlier calls, the latest last: how long it lasted [s], the command returned at its
+        #: start, and the velocity measured at its start and at its end (``None`` when not given).
+        self._returned: collections.deque[Period] = collections.deque(maxlen=COMMAND_HISTORY)
+
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
         #: Set by a caller while the robot drives through a passage the body fits with
@@ -561,8 +578,9 @@ class SafetyFilter(abc.ABC):
             pose: the odometry pose ``(x [m], y [m], yaw [rad])`` in any fixed frame; when given,
                 remembered points are carried by its change since the previous call (exact).
             scan_age: how old each scan is [s]; past ``scan_timeout`` the filter brakes. With
-                ``velocity`` given (and ``compensate_latency``), a scan is first moved into the
-                current base frame by the motion since it was taken (:meth:`current_frame`).
+                ``compensate_latency``, a scan is first moved into the current base frame by the motion
+                since it was taken (:meth:`latent_motion`: the velocities measured since then, with their
+                error bound added to its points, or without ``velocity`` the commands returned since then).
             now: the current time [s]; with the scans' stamps it gives their ages, and between
                 calls the period (a call later than ``dt`` is planned for the measured period
                 and reported ``LATE``).
@@ -580,9 +598,9 @@ class SafetyFilter(abc.ABC):
         current = None if velocity is None else as_command(velocity, "velocity")
         period, clock_note = self._clock(now)
         base_note = self._check_base(current, period if period is not None else self.dt)
+        if self._called:   # the last command, held since the previous call, and the velocities measured about it
+            self._returned.append(self._period_since(period, current))
         self._carry(period if period is not None else self.dt, current, pose)
-        if self._called:   # the last command, held since the previous call
-            self._returned.append((period if period is not None else self.dt, self._last_command.copy()))
         result = self._screened(nominal, scans, current, scan_age, now, period,
                                 "; ".join(note for note in (clock_note, base_note) if note))
         result = self._watch_progress(result)
@@ -768,14 +786,14 @@ class SafetyFilter(abc.ABC):
             return self._brake(nominal, current, FilterStatus.NO_DATA, "no_data",
                                f"none of the {beams} beams is informative (all NaN or out of range)",
                                warnings=warnings)
-        scans = self._compensated(scans, current, ages)
+        scans, error = self._compensated(scans, current, ages)
         held = self.dt
         late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
         if late:
             held = period
-        view = self._observe(scans, held)
+        view = self._observe(scans, held, error)
         result = self._filter(nominal, view, current, held)
-        self._remember(view)
+        self._remember(view, error)
         result = self._told_horizon(result, view)
         if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
             return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
@@ -790,46 +808,73 @@ class SafetyFilter(abc.ABC):
                           message=str(late_reason) + (f"; {result.message}" if result.message else ""))
         return _replace(result, **extras)
 
-    def _compensated(self, scans: tuple[LaserScan, ...], velocity: np.ndarray | None,
-                     ages: Sequence[float | None], pending: tuple[float, np.ndarray] | None = None
-                     ) -> tuple[LaserScan, ...]:
-        """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``):
-        the velocity held since then, or without it the commands returned since then (``pending``: a period not yet
-        in the history, the last command held since the previous call, for a look before the call)."""
-        if not self.compensate_latency:
-            return scans
-        if velocity is not None:
-            return tuple(self.current_frame(scan, velocity, age) if age is not None and age > 0.0 else scan
-                         for scan, age in zip(scans, ages, strict=True))
-        return tuple(scan.replace(mount=self._commanded_motion(age, pending).inverse().compose(scan.mount))
-                     if age is not None and age > 0.0 and (self._returned or pending) else scan
-                     for scan, age in zip(scans, ages, strict=True))
+    def _period_since(self, elapsed: float | None, velocity: np.ndarray | None) -> Period:
+        """The period since the previous call: its length [s] (``dt`` when the time is not given), the command
+        returned then, and the velocities measured then and now."""
+        end = None if velocity is None or not np.all(np.isfinite(velocity)) else np.array(velocity, dtype=float)
+        return Period(elapsed if elapsed is not None else self.dt, self._last_command.copy(), self._last_velocity, end)
 
-    def _commanded_motion(self, age: float, pending: tuple[float, np.ndarray] | None = None) -> Pose2D:
-        """The base's motion over the last ``age`` [s], executing the commands this filter returned (the base
-        without a velocity, A5): each held for its period, the latest first; at rest before the first call."""
+    def _compensated(self, scans: tuple[LaserScan, ...], velocity: np.ndarray | None,
+                     ages: Sequence[float | None], pending: Period | None = None
+                     ) -> tuple[tuple[LaserScan, ...], tuple[float, float]]:
+        """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``),
+        and the bound of that motion's error (A5, the largest over the scans): see :meth:`latent_motion`.
+        ``pending``: the period since the previous call, not yet in the history (a look before the call)."""
+        if not self.compensate_latency:
+            return scans, (0.0, 0.0)
+        moved, error = [], (0.0, 0.0)
+        for scan, age in zip(scans, ages, strict=True):
+            if age is None or age <= 0.0:
+                moved.append(scan)
+                continue
+            motion, (translation, rotation) = self.latent_motion(age, velocity, pending)
+            moved.append(scan.replace(mount=motion.inverse().compose(scan.mount)))
+            error = (max(error[0], translation), max(error[1], rotation))
+        return tuple(moved), error
+
+    def latent_motion(self, age: float, velocity: np.ndarray | None, pending: Period | None = None
+                      ) -> tuple[Pose2D, tuple[float, float]]:
+        """The base's motion over the last ``age`` [s], and the bound of its error (A5) [m, rad].
+
+        Walking back through the periods since the earlier calls (the latest first; the part of a period that the
+        age covers is its end): with the velocity measured at both ends of a period, the trapezoid of the two
+        measurements over that part, off by at most half their difference times the part
+        (:func:`~safenav.filters.perception.dead_reckoning`: the velocity moves monotonically within a period,
+        A4); without the velocity, the command returned at its start, which the base executes (A5: exact). The
+        errors add up as the memory's do (a turn error also times the travel of every later part). Before the
+        first call, or past the kept periods, the base is taken to have held ``velocity`` (at rest without
+        one), as a scan taken before the filter started was.
+        """
         periods = [*self._returned, *([pending] if pending is not None else [])]
-        arcs = []
+        parts: list[tuple[Pose2D, tuple[float, float]]] = []
         left = float(age)
-        for held, command in reversed(periods):
+        for period in reversed(periods):
             if left <= 0.0:
                 break
-            part = min(float(held), left)
-            arcs.append(unicycle_step(Pose2D(), float(command[0]), float(command[1]), part))
+            part = min(float(period.held), left)
+            if period.start is not None and period.end is not None:
+                parts.append(dead_reckoning(period.start, period.end, part))
+            else:
+                parts.append((unicycle_step(Pose2D(), float(period.command[0]), float(period.command[1]), part),
+                               (0.0, 0.0)))
             left -= part
-        motion = Pose2D()
-        for arc in reversed(arcs):     # the oldest part first
+        if left > 0.0 and velocity is not None:
+            parts.append((unicycle_step(Pose2D(), float(velocity[0]), float(velocity[1]), left), (0.0, 0.0)))
+        motion, translation, rotation, drag = Pose2D(), 0.0, 0.0, 0.0
+        for arc, (arc_translation, arc_rotation) in reversed(parts):     # the oldest part first
+            drag += rotation * math.hypot(arc.x, arc.y)
+            translation += arc_translation
+            rotation += arc_rotation
             motion = motion.compose(arc)
-        return motion
+        return motion, (translation + drag, rotation)
 
     def current_scans(self, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
                       scan_age: float | Sequence[float] | None = None, now: float | None = None
                       ) -> tuple[LaserScan, ...]:
-        """The scans as a call with these arguments uses them: in the base frame, and with ``velocity``
-        and a known age moved into the current base frame (:meth:`current_frame`, when
-        ``compensate_latency``). Changes nothing; a wrapper that looks at the scans before calling the
-        filter (the escape) reads them here. Scans the call would reject as stale, and a non-finite
-        velocity, are returned unmoved.
+        """The scans as a call with these arguments uses them: in the base frame, and with a known age moved
+        into the current base frame (:meth:`latent_motion`, when ``compensate_latency``). Changes nothing; a
+        wrapper that looks at the scans before calling the filter (the escape) reads them here. Scans the call
+        would reject as stale, and a non-finite velocity, are returned unmoved.
 
         Raises:
             InvalidCommand: ``velocity`` is not a pair of numbers.
@@ -841,12 +886,12 @@ class SafetyFilter(abc.ABC):
             return scans
         ages, stale = self._ages(scans, scan_age, now)
         pending = None
-        if current is None and self._called:    # the call appends the last command, held since the previous call
-            held = self.dt
+        if self._called:    # the call appends the period since the previous call
+            held = None
             if now is not None and self._last_time is not None and now >= self._last_time:
                 held = float(now) - self._last_time
-            pending = (held, self._last_command)
-        return scans if stale else self._compensated(scans, current, ages, pending)
+            pending = self._period_since(held, current)
+        return scans if stale else self._compensated(scans, current, ages, pending)[0]
 
     def _ages(self, scans: tuple[LaserScan, ...], scan_age: Any, now: float | None
               ) -> tuple[list[float | None], str]:
@@ -921,8 +966,13 @@ class SafetyFilter(abc.ABC):
         (a surface seen obliquely or through noise is not an edge)."""
         return 4.0 * max(scan_noise(self.robot), 0.0) + SHADOW_SPACING
 
-    def _observe(self, scans: tuple[LaserScan, ...], period: float | None = None) -> View:
-        """Obstacle points (current, the edge of what the lidars see, remembered) and the unknown region of a call."""
+    def _observe(self, scans: tuple[LaserScan, ...], period: float | None = None,
+                 error: tuple[float, float] = (0.0, 0.0)) -> View:
+        """Obstacle points (current, the edge of what the lidars see, remembered) and the unknown region of a call.
+
+        ``error``: the bound ``(e_translation [m], e_rotation [rad])`` of where the scans were moved into the
+        current base frame (:meth:`latent_motion`): a point ``d`` from the base origin is uncertain by
+        ``e_translation + d e_rotation``, and so is where it shows a remembered point again or free."""
         current = beam_points(scans, self.body)
         reach = self.horizon_reach(period)
         horizon = horizon_points(scans, reach, self.min_obstacle_width)
@@ -930,19 +980,22 @@ class SafetyFilter(abc.ABC):
         if shadows.shape[0]:
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current
+        seen_uncertainty = np.zeros(seen.shape[0])
+        if error[0] > 0.0 or error[1] > 0.0:
+            seen_uncertainty = error[0] + np.hypot(seen[:, 0], seen[:, 1]) * error[1]
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
-            return View(scans, seen, np.zeros(seen.shape[0]), current.shape[0], frontier, horizon.shape[0])
+            return View(scans, seen, seen_uncertainty, current.shape[0], frontier, horizon.shape[0])
         if frontier.complete:
             # Every direction round the body is seen now: a remembered point is either seen again or
             # occluded, and an occluded point cannot be the first to come within the margin.
             recalled, uncertainty = np.empty((0, 2)), np.empty(0)
         else:
             noise = max(scan_noise(self.robot), 0.0)
-            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01, scan_error=error)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
-        return View(scans, points, np.concatenate((np.zeros(seen.shape[0]), uncertainty)), current.shape[0],
+        return View(scans, points, np.concatenate((seen_uncertainty, uncertainty)), current.shape[0],
                     frontier, horizon.shape[0])
 
     @staticmethod
@@ -960,12 +1013,15 @@ class SafetyFilter(abc.ABC):
         message = result.message.replace(str(reason), str(told), 1) if result.message else str(told)
         return _replace(result, reason=told, message=message)
 
-    def _remember(self, view: View) -> None:
+    def _remember(self, view: View, error: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Keep the call's points (with their uncertainty) and, for a robot with a side no lidar sees, its scans as
+        space seen free; not a scan moved by the measured velocities, whose place is uncertain (``error``)."""
         self._last_view = view
         if self.memory is not None:
             recalled, uncertainty = self._recalled
-            self.memory.store(view.points[: view.n_current], recalled, uncertainty)
-        if self.seen_free is not None and (view.frontier.forward or view.frontier.backward):
+            self.memory.store(view.points[: view.n_current], recalled, uncertainty,
+                              view.uncertainty[: view.n_current])
+        if self.seen_free is not None and (view.frontier.forward or view.frontier.backward) and not any(error):
             self.seen_free.store(view.scans, max(scan_noise(self.robot), 0.0))
 
     @staticmethod
@@ -975,7 +1031,8 @@ class SafetyFilter(abc.ABC):
         Assumes the base held ``velocity`` ``(v [m/s], omega [rad/s])`` since then (the world
         is static): the base has moved by the exact arc ``unicycle_step(0, v, omega, age)``,
         so the laser now sits at the inverse of that motion composed with its mount. Only
-        the mount pose changes; the readings are untouched.
+        the mount pose changes; the readings are untouched. (A filter call moves a late scan by
+        :meth:`latent_motion`, the velocities measured since it was taken, with an error bound.)
         """
         moved = unicycle_step(Pose2D(), float(velocity[0]), float(velocity[1]), scan_age)
         return scan.replace(mount=moved.inverse().compose(scan.mount))

@@ -110,7 +110,7 @@ class CBFConfig:
             result reports a deadlock [s] (see :class:`~safenav.filters.base.Deadlock`).
         scan_timeout: scans older than this make the filter brake [s].
         compensate_latency: move a scan of known age into the current base frame first
-            (see :meth:`SafetyFilter.current_frame`).
+            (see :meth:`SafetyFilter.latent_motion`).
         min_obstacle_width: the narrowest obstacle [m] the filter must see in time to brake clear of
             (``None``: whatever the lidars resolve where the robot must see an obstacle,
             :attr:`~safenav.filters.SafetyFilter.smallest_obstacle`). Thinner obstacles can hide

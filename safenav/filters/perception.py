@@ -445,35 +445,49 @@ class PointMemory:
             self._error[2] += self._error[1] * math.hypot(motion.x, motion.y)
             self._error[:2] += uncertainty_rate
 
-    def recall(self, scans: tuple[LaserScan, ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    def recall(self, scans: tuple[LaserScan, ...], tolerance: float, scan_error: tuple[float, float] = (0.0, 0.0)
+               ) -> tuple[np.ndarray, np.ndarray]:
         """The remembered points no current beam sees again or contradicts, and their uncertainty.
 
         Args:
             scans: the current scans (base frame).
             tolerance: range difference within which a reading shows a remembered point again [m]
                 (beyond it, a farther reading contradicts it); the point's own uncertainty is added.
+            scan_error: ``(e_translation [m], e_rotation [rad])``: the scans' place in the base frame is uncertain
+                by that much (moved there by the measured velocities since they were taken), which a point
+                ``d`` from the base origin adds to its uncertainty against them; a point narrowed down to the
+                part of its disk beyond an edge of a field of view keeps that (the edge is where the scan is), the
+                others their own.
         """
         if self._points.shape[0] == 0:
             return np.empty((0, 2)), np.empty(0)
-        points, uncertainty = self.points, self.uncertainty
+        points, own = self.points, self.uncertainty
+        uncertainty = own
+        if scan_error[0] > 0.0 or scan_error[1] > 0.0:
+            uncertainty = own + scan_error[0] + np.hypot(points[:, 0], points[:, 1]) * scan_error[1]
+        against = uncertainty
         keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
             seen, points, uncertainty = _seen_again(scan, points, tolerance + uncertainty, uncertainty)
             keep &= ~seen
+        uncertainty = np.where(uncertainty == against, own, uncertainty)   # not narrowed: its own uncertainty
         return points[keep], uncertainty[keep]
 
-    def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray) -> None:
-        """Remember ``current`` points (exact) and the ``recalled`` ones, within range and capacity.
+    def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray,
+              current_uncertainty: np.ndarray | None = None) -> None:
+        """Remember ``current`` points (exact, or within ``current_uncertainty``) and the ``recalled`` ones, within
+        range and capacity.
 
         Everything else is forgotten; the points are stored in the current base frame. Without
         recalled points the current ones are kept as they are (``current`` must not be changed
         afterwards) and the range and capacity are applied when they are recalled.
         """
+        exact = np.zeros(current.shape[0]) if current_uncertainty is None else current_uncertainty
         if recalled.shape[0]:
             points = np.vstack((current, recalled))
-            uncertainty = np.concatenate((np.zeros(current.shape[0]), recalled_uncertainty))
+            uncertainty = np.concatenate((exact, recalled_uncertainty))
         else:
-            points, uncertainty = current, np.zeros(current.shape[0])
+            points, uncertainty = current, exact
         if points.shape[0] > self.capacity:
             distance = np.hypot(points[:, 0], points[:, 1])
             order = np.argsort(distance, kind="stable")[: self.capacity]

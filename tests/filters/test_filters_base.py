@@ -252,8 +252,8 @@ def test_an_old_scan_is_moved_into_the_current_frame(make):
     robot = preset("rosbot")
     filt = make(robot)
     scan = synthetic_scan(robot, Scene.of(wall(1.0)))
-    fresh = filt.filter((0.0, 0.0), scan, velocity=(0.0, 0.0))
-    late = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0), scan_age=0.2)   # 0.2 m closer by now
+    fresh = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0))
+    late = filt.filter((0.0, 0.0), scan, velocity=(1.0, 0.0), scan_age=0.2)   # 0.2 m closer by now, at 1 m/s
     assert fresh.clearance == pytest.approx(1.0 - robot.radius, abs=1e-9)
     assert late.clearance == pytest.approx(0.8 - robot.radius, abs=1e-9)
 

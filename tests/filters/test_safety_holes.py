@@ -451,17 +451,19 @@ def test_a_point_the_mpc_cannot_keep_clear_does_not_relax_the_rows_of_the_others
 # ------------------------------------------------------------------ a scan that arrives late, without the velocity
 
 
-#: Found by the falsifier's ``--latencies 0.1`` (seed 647): every scan 0.1 s old (taken where the robot was then,
-#: stamped then, the filter told the time), the ROSbot's MPC without the velocity (an instant base, A5), no compute
-#: budget so that they replay exactly. The filter moved a late scan into the current base frame only with the
-#: velocity; without it the scan was used as if taken now, and the robot drove up to 0.1 s of motion nearer
-#: than it saw: a contact (-3.0 cm against the margin) and five more 1.1-2.8 cm below it. Now the scan is moved
-#: by the commands the filter returned since it was taken: +1.1 to +1.3 cm.
+#: Found by the falsifier's ``--latencies`` (every scan that old: taken where the robot was then, stamped then, the
+#: filter told the time), the ROSbot's MPC, no compute budget so that they replay exactly. Without the velocity (an
+#: instant base, A5; seed 647, 0.1 s) the filter used a late scan as if taken now, and the robot drove up to 0.1 s
+#: of motion nearer than it saw: a contact (-3.0 cm against the margin) and five more 1.1-2.8 cm below it; now the
+#: scan is moved by the commands the filter returned since it was taken: +1.1 to +1.3 cm. With the velocity (seed
+#: 653, 0.2 s, ramping and lagging bases: ``velocity-*``) the scan was moved as if the base had held the velocity
+#: measured now, 1.4-2.3 cm below the margin; now by the velocities measured since, with their error bound
+#: added to its points (A5): +1.5 to +2.6 cm.
 FOUND_LATE = json.loads((Path(__file__).resolve().parents[1] / "data" / "falsifier_latency.json").read_text())
 
 
 @pytest.mark.parametrize("found", sorted(FOUND_LATE))
-def test_a_late_scan_without_the_velocity_is_moved_by_the_commands_returned_since_it_was_taken(found):
+def test_a_late_scan_is_moved_by_the_motion_since_it_was_taken(found):
     assert_safe(Episode.from_json(FOUND_LATE[found]))
 
 
@@ -491,6 +493,36 @@ def test_without_the_velocity_a_late_scan_is_where_the_commands_returned_since_t
             assert other.clearance == pytest.approx(now.clearance, abs=1e-3), step
         np.testing.assert_allclose(other.u, result.u, atol=1e-9)
         pose = filters_base.unicycle_step(pose, float(result.u[0]), float(result.u[1]), dt)
+
+
+@pytest.mark.parametrize("age_periods", [1, 2, 4])
+def test_with_the_velocity_a_late_scans_points_are_where_they_are_within_their_uncertainty(age_periods):
+    """A ROSbot whose base ramps at its acceleration limits towards bang-bang commands, the velocity measured at
+    each call: a scan ``age_periods`` periods old is moved into the current base frame by the velocities measured
+    since it was taken, and every point it gives lies within its uncertainty of where that obstacle point truly is
+    now (before: moved as if the base had held the velocity measured now, with no uncertainty). Remembered points
+    are stored with it."""
+    robot, dt = preset("rosbot"), 0.05
+    scene = Scene.of(Segment((2.5, -3.0), (2.5, 3.0)), Circle((1.2, 1.0), 0.2), Circle((0.5, -1.5), 0.15))
+    safety = CBFSafetyFilter(robot, dt)
+    poses, pose, velocity, rate = [], filters_base.Pose2D(), np.zeros(2), np.array([robot.a_max, robot.alpha_max])
+    worst = 0.0
+    for step in range(40):
+        poses.append(pose)
+        taken = poses[max(step - age_periods, 0)]
+        scan = synthetic_scan(robot, scene, taken)
+        nominal = (0.6 if (step // 3) % 2 else 0.1, 1.5 if (step // 2) % 2 else -1.5)
+        result = safety.filter(nominal, scan, velocity=velocity, scan_age=dt * min(step, age_periods))
+        view = safety._last_view
+        truth = pose.to_local(taken.to_parent(scan.points()))       # where the scan's hits are now
+        seen = view.points[: view.n_current]
+        assert seen.shape == truth.shape
+        off = np.hypot(*(seen - truth).T) - view.uncertainty[: view.n_current]
+        worst = max(worst, float(off.max()))
+        for _ in range(10):     # the base ramps towards the command at its limits, the exact unicycle
+            velocity = velocity + np.clip(np.asarray(result.u) - velocity, -rate * dt / 10, rate * dt / 10)
+            pose = filters_base.unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt / 10)
+    assert worst <= 1e-9, worst
 
 
 def test_after_an_answer_that_needed_slack_per_point_the_next_call_solves_with_it_at_once():
