@@ -321,14 +321,14 @@ def _layout(keys: tuple[tuple[float, float, int, float, float, float], ...], bod
 
     def comes_into_view(direction: float) -> np.ndarray:
         """Whether the space ahead of each blind sample (along ``direction`` x) enters a field of view."""
-        seen = np.zeros(len(points), dtype=bool)
-        for step in steps:
-            ahead = probe + np.array([direction * step, 0.0])
-            seen |= np.any(np.stack([beam_of(key, ahead) >= 0 for key in keys]), axis=0)
-        return seen
+        # Every step at once (a layout is built at every call that moves a late scan into the current frame).
+        ahead = (probe[None, :, :] + np.array([direction, 0.0]) * steps[:, None, None]).reshape(-1, 2)
+        seen = np.any(np.stack([beam_of(key, ahead) >= 0 for key in keys]), axis=0)
+        return seen.reshape(len(steps), len(points)).any(axis=0)
 
-    forward = bool(np.any(blind & (normals[:, 0] > threshold) & ~comes_into_view(1.0)))
-    backward = bool(np.any(blind & (normals[:, 0] < -threshold) & ~comes_into_view(-1.0)))
+    # (Nothing outside every field of view: no side is blind, whatever comes into view.)
+    forward = bool(blind.any()) and bool(np.any(blind & (normals[:, 0] > threshold) & ~comes_into_view(1.0)))
+    backward = bool(blind.any()) and bool(np.any(blind & (normals[:, 0] < -threshold) & ~comes_into_view(-1.0)))
     for array in beams:
         array.flags.writeable = False
     none = np.empty((0, 2))
