@@ -20,7 +20,8 @@ apart; the straightforward baseline timed on the CBF's own scans of the same run
 
 ``--reach`` times the CBF (given the velocity) by what lies within its reach, every preset, one
 fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ahead, a wall
-0.15 m beside the body; the nominal and the velocity are 30 % of the top speed, straight ahead.
+0.15 m beside the body; the nominal and the velocity are 30 % of the top speed, straight ahead; each
+scan fresh and 0.1 s old (as a ROS node's scans arrive: the filter first moves them into the current frame).
 
 Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``)::
 
@@ -202,25 +203,38 @@ def reach_scenes(robot: RobotSpec) -> dict[str, Scene]:
     }
 
 
+LATE_SCAN = 0.1
+"""Age of the late scan the ``--reach`` table also times [s] (up to 9 % older, varying from call to call): a ROS
+node's scans always arrive late, and the filter first moves them into the current base frame
+(``SafetyFilter.latent_motion``)."""
+
+
 def reach_latency(robots: Sequence[str], calls: int) -> list[dict[str, Any]]:
-    """The CBF's time per call (velocity given) on one fixed scan of each scene of :func:`reach_scenes`."""
+    """The CBF's time per call (velocity given) on one fixed scan of each scene of :func:`reach_scenes`, fresh and
+    :data:`LATE_SCAN` old."""
     rows = []
     for name in robots:
         robot = preset(name)
         command = np.array([0.3 * robot.v_max, 0.0])
         for scene_name, scene in reach_scenes(robot).items():
             scan = synthetic_scan(robot, scene, Pose2D(), noise_std=0.0)
-            safety = CBFSafetyFilter(robot, DT)
-            samples, statuses = [], {}
-            for call in range(calls + 20):
-                start = time.perf_counter()
-                result = safety.filter(command, scan, velocity=command)
-                elapsed = time.perf_counter() - start
-                if call >= 20:   # the first calls fill the memory and the caches
-                    samples.append(elapsed)
-                    statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
-            rows.append({"robot": name, "scene": scene_name, "points": len(scan.points()),
-                         "end_to_end": summary(samples), "statuses": statuses, "modified": bool(result.modified)})
+            timed = {}
+            for age in (0.0, LATE_SCAN):
+                safety = CBFSafetyFilter(robot, DT)
+                samples, statuses = [], {}
+                for call in range(calls + 20):
+                    start = time.perf_counter()
+                    # A late scan's age varies a little from call to call (as a ROS node's do), so that each call
+                    # moves it into the current frame by a motion of its own, nothing cached from the call before.
+                    result = safety.filter(command, scan, velocity=command, scan_age=age * (1.0 + 0.01 * (call % 10)))
+                    elapsed = time.perf_counter() - start
+                    if call >= 20:   # the first calls fill the memory and the caches
+                        samples.append(elapsed)
+                        statuses[result.status.value] = statuses.get(result.status.value, 0) + 1
+                timed[age] = (summary(samples), statuses, bool(result.modified))
+            (fresh, statuses, modified), (late, _, _) = timed[0.0], timed[LATE_SCAN]
+            rows.append({"robot": name, "scene": scene_name, "points": len(scan.points()), "end_to_end": fresh,
+                         "late_scan": late, "statuses": statuses, "modified": modified})
     return rows
 
 
@@ -379,11 +393,13 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     results: dict[str, Any] = {"config": vars(args)}
     if args.reach or args.only_reach:
         results["reach"] = reach_latency(PRESET_NAMES, args.reach_calls)
-        print("the CBF by what lies within its reach (one fixed scan each, velocity given):")
-        print(markdown_table(["robot", "scene", "obstacle points", "median µs", "p99 µs", "command changed",
-                              "statuses"],
+        print(f"the CBF by what lies within its reach (one fixed scan each, velocity given; the same scan "
+              f"{LATE_SCAN:g} s old):")
+        print(markdown_table(["robot", "scene", "obstacle points", "median µs", "p99 µs", "late: median µs",
+                              "late: p99 µs", "command changed", "statuses"],
                              [[row["robot"], row["scene"], row["points"], row["end_to_end"]["median_us"],
-                               row["end_to_end"]["p99_us"], "yes" if row["modified"] else "no", row["statuses"]]
+                               row["end_to_end"]["p99_us"], row["late_scan"]["median_us"], row["late_scan"]["p99_us"],
+                               "yes" if row["modified"] else "no", row["statuses"]]
                               for row in results["reach"]]))
         print()
         if args.only_reach:

@@ -41,6 +41,6 @@ def test_the_reach_table_times_every_preset_in_every_scene(tmp_path):
     assert [(row["robot"], row["scene"]) for row in rows] == [(name, scene) for name in PRESET_NAMES
                                                               for scene in scenes]
     for row in rows:
-        assert row["end_to_end"]["n"] == 3 and sum(row["statuses"].values()) == 3
+        assert row["end_to_end"]["n"] == 3 and row["late_scan"]["n"] == 3 and sum(row["statuses"].values()) == 3
         assert (row["points"] == 0) == (row["scene"] == "nothing in range")
         assert not row["modified"] or row["scene"].startswith("wall")
