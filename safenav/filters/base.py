@@ -80,8 +80,8 @@ STALL_PROGRESS = 0.1
 #: driving (a go-to-goal at its heading threshold) makes progress for a period now and then
 #: while the robot stays put, and one such period must not reset the deadlock clock.
 PROGRESS_RESET_TIME = 0.25
-#: How many periods of returned commands a filter keeps, to move a scan of known age into the current base frame
-#: without the velocity (its base then executes the commands, A5): 0.5 s (``scan_timeout``'s default) at 64 Hz.
+#: How many periods a filter keeps (the command returned, the velocities measured about it) to move a scan of known
+#: age into the current base frame (:meth:`SafetyFilter.latent_motion`): 0.5 s (``scan_timeout``'s default) at 64 Hz.
 COMMAND_HISTORY = 32
 
 
@@ -456,7 +456,6 @@ class SafetyFilter(abc.ABC):
         #: Each period since the earlier calls, the latest last: how long it lasted [s], the command returned at its
         #: start, and the velocity measured at its start and at its end (``None`` when not given).
         self._returned: collections.deque[Period] = collections.deque(maxlen=COMMAND_HISTORY)
-
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
         #: Set by a caller while the robot drives through a passage the body fits with
