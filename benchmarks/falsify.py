@@ -485,6 +485,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     # Every sub-step's start pose and velocity, for where the robot was when a late scan was taken.
     path_poses: list[Pose2D] = []
     path_velocities: list[np.ndarray] = []
+    velocity_start = velocity.copy()
 
     def pose_at(time: float) -> Pose2D:
         if time <= 0.0:     # before the start the robot held the start velocity, and got to the start pose
@@ -493,7 +494,6 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         held = path_velocities[index]
         return unicycle_step(path_poses[index], float(held[0]), float(held[1]), time - index * h)
 
-    velocity_start = velocity.copy()
     for step in range(steps):
         t = step * period
         taken = t - episode.latency
@@ -590,7 +590,8 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
 
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
     and 17 of the vector choose (so one search covers them all). With ``give_pose`` the filter is
-    given the odometry pose too, in a frame up to 1 km from the start whose heading starts within
+    given the odometry pose too, in a frame whose origin is up to 1 km from the start along each axis and whose
+    heading starts within
     0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door). ``latency``: every scan's age
     [s] (:attr:`Episode.latency`).
     """
