@@ -47,6 +47,7 @@ from safenav.filters.perception import (
     beam_points,
     dead_reckoning,
     horizon_points,
+    motion_spread,
     resolved_range,
     shadow_points,
     unknown_region,
@@ -979,9 +980,7 @@ class SafetyFilter(abc.ABC):
         if shadows.shape[0]:
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current
-        seen_uncertainty = np.zeros(seen.shape[0])
-        if error[0] > 0.0 or error[1] > 0.0:
-            seen_uncertainty = error[0] + np.hypot(seen[:, 0], seen[:, 1]) * error[1]
+        seen_uncertainty = motion_spread(seen, error) if any(error) else np.zeros(seen.shape[0])
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, seen, seen_uncertainty, current.shape[0], frontier, horizon.shape[0])

@@ -462,9 +462,7 @@ class PointMemory:
         if self._points.shape[0] == 0:
             return np.empty((0, 2)), np.empty(0)
         points, own = self.points, self.uncertainty
-        uncertainty = own
-        if scan_error[0] > 0.0 or scan_error[1] > 0.0:
-            uncertainty = own + scan_error[0] + np.hypot(points[:, 0], points[:, 1]) * scan_error[1]
+        uncertainty = own + motion_spread(points, scan_error) if any(scan_error) else own
         against = uncertainty
         keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
@@ -749,6 +747,13 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
     rotation = 0.5 * elapsed * float(change[1])
     drag = 0.5 * elapsed * max(abs(float(start[0])), abs(float(end[0]))) * rotation
     return motion, (0.5 * elapsed * float(change[0]) + drag, rotation)
+
+
+def motion_spread(points: np.ndarray, error: tuple[float, float]) -> np.ndarray:
+    """How far [m] each of ``points`` ``(N, 2)`` (base frame [m]) may lie from where a motion with the error bound
+    ``error = (e_translation [m], e_rotation [rad])`` (:func:`dead_reckoning`) puts it: ``e_translation + d
+    e_rotation``, ``d`` its distance from the base origin."""
+    return error[0] + np.hypot(points[:, 0], points[:, 1]) * error[1]
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, uncertainty: np.ndarray
