@@ -16,6 +16,7 @@ import numpy as np
 import qpsolvers
 
 from safenav import _checks
+from safenav.filters import kernels
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
@@ -116,6 +117,10 @@ class CBFConfig:
             :attr:`~safenav.filters.SafetyFilter.smallest_obstacle`). Thinner obstacles can hide
             between two beams until they are near; when this is smaller, the filter keeps able to stop
             within the range where a beam must hit one (it drives slower).
+        kernels: how the obstacle rows of the disk and cover bodies are built: ``"auto"`` (compiled by
+            numba when it is installed, ``pip install "safenav[fast]"``), ``"numba"`` (compiled; raises
+            :class:`~safenav.errors.MissingDependency` without numba) or ``"numpy"`` (the reference;
+            :mod:`safenav.filters.kernels`). The same rows to rounding either way.
     """
 
     gamma: float | None = None
@@ -140,6 +145,7 @@ class CBFConfig:
     scan_timeout: float = 0.5
     compensate_latency: bool = True
     min_obstacle_width: float | None = None
+    kernels: str = "auto"
 
     def __post_init__(self) -> None:
         name = "CBFConfig."
@@ -174,6 +180,7 @@ class CBFConfig:
         _checks.boolean(name + "compensate_latency", self.compensate_latency)
         if self.min_obstacle_width is not None:
             _checks.positive(name + "min_obstacle_width", self.min_obstacle_width)
+        _checks.choice("CBF kernels", self.kernels, kernels.KERNELS)
 
     def resolve(self, robot: RobotSpec, dt: float) -> CBFConfig:
         """This config with every robot-derived default filled in (see :mod:`safenav.filters.defaults`)."""
@@ -212,6 +219,8 @@ class _Shape(NamedTuple):
     lookahead: float                    # [m]
     arm: float                          # the farthest control point (or polygon vertex) from the base origin [m]
     extent: tuple[float, float]         # bounds of the cut before any trigonometry [m]
+    control: np.ndarray | None = None   # (D, 2) the disks' control points [m] (disk bodies; the compiled rows)
+    offsets: np.ndarray | None = None   # (D,) radius + look-ahead + margin of each disk [m] (likewise)
 
 
 class _Problem(NamedTuple):
@@ -366,6 +375,8 @@ class CBFSafetyFilter(SafetyFilter):
             self._shapes["narrow"] = self._shape_of(narrow, 0.0)
         self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
+        # The compiled obstacle rows (disk and cover bodies), compiled here rather than in a control call.
+        self._kernels = kernels.load() if kernels.resolve(cfg.kernels) == "numba" else None
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
         """``body`` with its control points ``lookahead`` ahead [m], the farthest of them from the base origin
@@ -384,7 +395,9 @@ class CBFSafetyFilter(SafetyFilter):
         radius = body.radii + lookahead + self.margin
         # Bounds for the cut before any trigonometry: H <= |o_min| + max(|p| - r); h(o) >= |o| - max(|p| + r).
         return _Shape(body, None, lookahead, float(np.max(control_distance)),
-                      (float(np.max(control_distance - radius)), float(np.max(control_distance + radius))))
+                      (float(np.max(control_distance - radius)), float(np.max(control_distance + radius))),
+                      np.ascontiguousarray(control, dtype=float),
+                      np.ascontiguousarray(body.radii + (lookahead + self.margin), dtype=float))
 
     def _use(self, shape: str) -> None:
         """Build the rows of the following calls with the body and look-ahead of ``shape``
@@ -455,8 +468,12 @@ class CBFSafetyFilter(SafetyFilter):
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         travel = speed * period if velocity is None else speed * reaction + speed * speed / (2.0 * robot.a_max)
         tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma, travel=travel)
-        geo, per_point, min_barrier = None, np.empty(0), cut_barrier
-        if points.shape[0]:
+        geo, per_point, min_barrier, obstacle = None, np.empty(0), cut_barrier, families.stack()
+        if self._kernels is not None and cut and self._polygon is None:
+            obstacle, per_point, min_barrier = self._compiled_rows(points, uncertainty, velocity, (lower, upper),
+                                                                   (z_lower, z_upper), period, reaction, kappa,
+                                                                   travel, cut_barrier)
+        elif points.shape[0]:
             if self._polygon is not None:
                 kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
@@ -472,8 +489,7 @@ class CBFSafetyFilter(SafetyFilter):
                 geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
                                                    self.margin, kappa, limit, **tilt)
             min_barrier = min(float(per_point.min()), cut_barrier)
-        obstacle = families.stack()
-        if geo is not None and geo.point.size:   # else no point within the reach of any row (open space)
+        if geo is not None and geo.point.size:   # else compiled, or no point within the reach of any row
             barrier = families.barrier_rows(geo, self.gamma, self._own_rate(velocity), period, smallest=min_barrier)
             obstacle = barrier
             if velocity is not None:
@@ -503,6 +519,36 @@ class CBFSafetyFilter(SafetyFilter):
             rows = obstacle
         return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
                         clearance, blind_speed)
+
+    def _compiled_rows(self, points: np.ndarray, uncertainty: np.ndarray, velocity: np.ndarray | None,
+                       box: tuple[np.ndarray, np.ndarray], z_box: tuple[np.ndarray, np.ndarray], period: float,
+                       reaction: float, kappa: float, travel: float, cut_barrier: float
+                       ) -> tuple[families.Rows, np.ndarray, float]:
+        """The obstacle rows of the disk bodies by :mod:`~safenav.filters.kernels` (what the numpy branch of
+        :meth:`_constraints` builds with the cut), every point's smallest barrier and ``H`` [m]."""
+        compiled, shape = self._kernels, self._shape
+        points = np.ascontiguousarray(points, dtype=float)
+        uncertainty = np.ascontiguousarray(uncertainty, dtype=float)
+        if not points.shape[0]:
+            return families.stack(), np.empty(0), cut_barrier
+        per_point = compiled.pair_minima(points, uncertainty, shape.control, shape.offsets)
+        smallest = float(per_point.min())
+        lower, upper = box
+        limit = float(self._binding_reach(lower, upper, velocity, smallest, period, reaction))
+        min_barrier = min(smallest, cut_barrier)
+        with_velocity = velocity is not None
+        if with_velocity:
+            braking_reach = float(self._braking_reach(lower, upper, velocity, period, reaction))
+            lag = lag_fraction(period, self.time_constant)
+            moving = np.asarray(velocity, dtype=float)
+        else:
+            braking_reach, lag, moving = 0.0, 0.0, np.zeros(2)
+        G, h, point, family = compiled.obstacle_rows(
+            points, uncertainty, shape.control, shape.offsets, per_point, limit, 1.0 - self.gamma, travel, kappa,
+            self.gamma, self._own_rate(velocity), period, min_barrier, with_velocity, moving, self.robot.a_max,
+            self.robot.alpha_max, reaction, self._allowance, braking_reach, np.asarray(lower, dtype=float),
+            np.asarray(upper, dtype=float), lag, z_box[0], z_box[1])
+        return families.Rows(G, h, point, family), per_point, min_barrier
 
     def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], velocity: np.ndarray | None,
                      period: float, reaction: float, u_nom: np.ndarray | None) -> float:

@@ -1,0 +1,254 @@
+"""The numba code of :mod:`safenav.filters.kernels` (imported only when numba is installed and asked for).
+
+Each function mirrors a numpy function of :mod:`safenav.filters.rows`, named in its comment.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def braking_coefficient(c, barrier, accel, reference, reaction):
+    """rows.braking_coefficient, one coefficient."""
+    h = max(barrier, 0.0)
+    magnitude = abs(c)
+    aT = reference * reaction
+    numerator = math.sqrt(magnitude * (magnitude * (aT * aT) + (2.0 * reference * reference / accel) * h)) \
+        + magnitude * aT
+    denominator = math.sqrt(aT * aT + (2.0 * reference) * h) + aT
+    scaled = numerator / denominator if denominator > 0.0 else magnitude
+    return math.copysign(scaled, c)
+
+@_jit
+def stopping_speed(barrier, accel, reaction):
+    """rows.stopping_speed."""
+    return math.sqrt((accel * reaction) ** 2 + 2.0 * accel * max(barrier, 0.0)) - accel * reaction
+
+@_jit
+def term_signs(k, low, high):
+    """rows._term_signs, one coefficient: ``(always, never)``."""
+    nonnegative, nonpositive = low >= 0.0, high <= 0.0
+    if nonnegative and nonpositive:
+        return True, True
+    if nonnegative:
+        return k >= 0.0, k <= 0.0
+    if nonpositive:
+        return k <= 0.0, k >= 0.0
+    return k == 0.0, k == 0.0
+
+@_jit
+def pair_minima(points, uncertainty, control, offsets):
+    """rows.geometry's ``per_point``: every point's smallest barrier over the disks [m]."""
+    count, disks = points.shape[0], control.shape[0]
+    per_point = np.empty(count)
+    for i in range(count):
+        best = np.inf
+        for d in range(disks):
+            dx = control[d, 0] - points[i, 0]
+            dy = control[d, 1] - points[i, 1]
+            value = math.sqrt(dx * dx + dy * dy) - offsets[d] - uncertainty[i]
+            if value < best:
+                best = value
+        per_point[i] = best
+    return per_point
+
+@_jit
+def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor_ratio, travel, kappa,
+                  gamma, own, period, smallest, with_velocity, velocity, a_max, alpha_max, reaction, allowance,
+                  braking_reach, box_lower, box_upper, lag, z_lower, z_upper):
+    """The obstacle rows of CBFSafetyFilter._constraints with the cut, for disk bodies: rows.geometry (the
+    pairs within ``limit``, tilted by rows.slide), rows.barrier_rows, the pairs within ``braking_reach``,
+    rows.braking_rows, rows.sweep_rows, rows.ramp_corners (``reduce=True``, the headroom ``gamma``), stacked
+    in that order. Returns ``(G, h, point, family)``."""
+    count, disks = points.shape[0], control.shape[0]
+    # rows.geometry with drop=True: the pairs within the limit, point-major
+    pairs = count * disks
+    pair_point = np.empty(pairs, dtype=np.intp)
+    barrier = np.empty(pairs)
+    approach = np.empty((pairs, 2))
+    arc = np.empty((pairs, 2))
+    reach_of = np.empty(disks)
+    for d in range(disks):
+        reach_of[d] = math.sqrt(control[d, 0] ** 2 + control[d, 1] ** 2)
+    floor = floor_ratio * per_point.min() if count else 0.0
+    kept = 0
+    for i in range(count):
+        for d in range(disks):
+            dx = control[d, 0] - points[i, 0]
+            dy = control[d, 1] - points[i, 1]
+            distance = math.sqrt(dx * dx + dy * dy)
+            value = distance - offsets[d] - uncertainty[i]
+            if not value <= limit:
+                continue
+            if distance < 1e-9:      # a point exactly at a control point: pushed back along -x
+                dx, dy, distance = 1.0, 0.0, 1.0
+                value = -offsets[d] - uncertainty[i]
+            if travel > 0.0:
+                # rows.slide, one pair
+                along, lateral, reach = abs(dx), abs(dy), distance - value
+                own_distance = math.sqrt(along * along + lateral * lateral)
+                keep = reach + floor
+                entry = along - math.sqrt(max(keep * keep - lateral * lateral, 0.0))
+                crossing = lateral < keep
+                tangent = crossing and travel >= entry
+                parallel = (not crossing) and along <= travel
+                end_along = max(along - travel, 0.0)
+                end_norm = math.sqrt(end_along * end_along + lateral * lateral)
+                if tangent:
+                    ratio = lateral / (keep if keep > 0.0 else 1.0)
+                    u_along, u_lateral = math.sqrt(max(1.0 - ratio * ratio, 0.0)), ratio
+                elif parallel:
+                    u_along, u_lateral = 0.0, 1.0
+                else:
+                    end_norm_safe = end_norm if end_norm > 0.0 else 1.0
+                    u_along, u_lateral = end_along / end_norm_safe, lateral / end_norm_safe
+                tilted = u_along * along + u_lateral * lateral - reach
+                if (own_distance < keep or (not tangent and not parallel and end_norm <= 0.0)
+                        or travel <= 0.0):
+                    safe = own_distance if own_distance > 0.0 else 1.0
+                    u_along, u_lateral, tilted = along / safe, lateral / safe, own_distance - reach
+                nx = -u_along if dx < 0.0 else u_along
+                ny = -u_lateral if dy < 0.0 else u_lateral
+                value = tilted
+            else:
+                nx, ny = dx / distance, dy / distance
+            pair_point[kept] = i
+            barrier[kept] = value
+            approach[kept, 0] = -nx
+            approach[kept, 1] = nx * control[d, 1] - ny * control[d, 0]
+            arc[kept, 0] = kappa
+            arc[kept, 1] = kappa * reach_of[d]
+            kept += 1
+    # at most: a barrier row, three braking rows and two sweep rows per pair, each in four corners
+    capacity = 6 * kept
+    G = np.zeros((capacity, 4))
+    h = np.empty(capacity)
+    point = np.empty(capacity, dtype=np.intp)
+    family = np.empty(capacity, dtype=np.intp)
+    # rows.barrier_rows (family 0)
+    for k in range(kept):
+        value = barrier[k]
+        rhs = value - (1.0 - gamma) * smallest
+        if own < 1.0 and value > 0.0:
+            rhs = min(rhs, own * value)
+        if value <= 0.0:
+            rhs = min(rhs, gamma * value)
+        G[k, 0], G[k, 1], G[k, 2], G[k, 3] = approach[k, 0], approach[k, 1], arc[k, 0], arc[k, 1]
+        h[k] = rhs / period
+        point[k] = pair_point[k]
+        family[k] = 0
+    rows = kept
+    if not with_velocity:
+        return G[:rows], h[:rows], point[:rows], family[:rows]
+    # the pairs within the braking reach (CBFSafetyFilter._constraints)
+    close = np.empty(kept, dtype=np.intp)
+    closes = 0
+    for k in range(kept):
+        if barrier[k] + allowance <= braking_reach:
+            close[closes] = k
+            closes += 1
+    limit_of = np.empty(closes)
+    k_v = np.empty(closes)
+    k_omega = np.empty(closes)
+    kinds = np.zeros((3, closes), dtype=np.bool_)
+    for j in range(closes):
+        k = close[j]
+        value = barrier[k] + allowance
+        limit_of[j] = stopping_speed(value, a_max, reaction)
+        k_v[j] = braking_coefficient(approach[k, 0], value, a_max, a_max, reaction)
+        k_omega[j] = braking_coefficient(approach[k, 1], value, alpha_max, a_max, reaction)
+        always_v, never_v = term_signs(k_v[j], box_lower[0], box_upper[0])
+        always_omega, never_omega = term_signs(k_omega[j], box_lower[1], box_upper[1])
+        both = (not never_v) and (not never_omega)
+        v_alone = (not always_omega) and (not never_v)
+        omega_alone = (not always_v) and (not never_omega)
+        kinds[0, j] = both or not (both or v_alone or omega_alone)
+        kinds[1, j] = v_alone
+        kinds[2, j] = omega_alone
+    # rows.braking_rows (family 1): both terms, v alone, omega alone
+    for kind in range(3):
+        for j in range(closes):
+            if not kinds[kind, j]:
+                continue
+            k = close[j]
+            G[rows, 0] = 0.0 if kind == 2 else k_v[j]
+            G[rows, 1] = 0.0 if kind == 1 else k_omega[j]
+            G[rows, 2], G[rows, 3] = arc[k, 0], arc[k, 1]
+            h[rows] = limit_of[j]
+            point[rows] = pair_point[k]
+            family[rows] = 1
+            rows += 1
+    # rows.sweep_rows (family 2): the heading's block, then the reverse heading's
+    rate = abs(velocity[1]) + alpha_max * period
+    sweep = rate * reaction + rate * rate / (2.0 * alpha_max)
+    cos_limit, cos_sweep, sin_sweep = math.cos(min(sweep, math.pi)), math.cos(sweep), math.sin(sweep)
+    for block in range(2):
+        sign = 1.0 if block == 0 else -1.0
+        for j in range(closes):
+            k = close[j]
+            forward = approach[k, 0]
+            cosine = sign * forward
+            sine = math.sqrt(max(1.0 - forward * forward, 0.0))
+            effective = 1.0 if cosine >= cos_limit else cosine * cos_sweep + sine * sin_sweep
+            if not (sweep >= math.pi or effective > 1e-6):
+                continue
+            value = barrier[k] + allowance
+            coefficient = 1.0 if effective >= 1.0 else braking_coefficient(min(effective, 1.0), value, a_max,
+                                                                          a_max, reaction)
+            G[rows, 0] = sign * coefficient
+            G[rows, 1] = 0.0
+            G[rows, 2], G[rows, 3] = arc[k, 0], arc[k, 1]
+            h[rows] = limit_of[j]
+            point[rows] = pair_point[k]
+            family[rows] = 2
+            rows += 1
+    if lag <= 0.0 or rows == 0:
+        return G[:rows], h[:rows], point[:rows], family[:rows]
+    # rows.ramp_corners with the box and reduce=True: the rows that can bind, in four corners
+    hull_lower, hull_upper = z_lower.copy(), z_upper.copy()
+    for c in range(2):
+        hull_lower[c] = min(z_lower[c], velocity[c])
+        hull_upper[c] = max(z_upper[c], velocity[c])
+    middle = 0.5 * (hull_lower + hull_upper)
+    half = 0.5 * (hull_upper - hull_lower)
+    bind = np.empty(rows, dtype=np.intp)
+    binding = 0
+    for r in range(rows):
+        worst = 0.0
+        spread = 0.0
+        for c in range(4):
+            worst += G[r, c] * middle[c]
+            spread += abs(G[r, c]) * half[c]
+        if worst + spread > h[r]:
+            bind[binding] = r
+            binding += 1
+    out = 4 * binding
+    G_out = np.empty((out, 4))
+    h_out = np.empty(out)
+    point_out = np.empty(out, dtype=np.intp)
+    family_out = np.empty(out, dtype=np.intp)
+    written = 0
+    for corner in range(4):
+        b_v = lag if corner == 1 or corner == 3 else 0.0
+        b_omega = lag if corner >= 2 else 0.0
+        for j in range(binding):
+            r = bind[j]
+            if (b_v > 0.0 and G[r, 0] == 0.0) or (b_omega > 0.0 and G[r, 1] == 0.0):
+                continue
+            if corner == 0:
+                h_out[written] = h[r] - gamma * abs(h[r])
+            else:
+                h_out[written] = h[r] - ((b_v * velocity[0]) * G[r, 0] + (b_omega * velocity[1]) * G[r, 1])
+            G_out[written, 0] = G[r, 0] * (1.0 - b_v)
+            G_out[written, 1] = G[r, 1] * (1.0 - b_omega)
+            G_out[written, 2], G_out[written, 3] = G[r, 2], G[r, 3]
+            point_out[written] = point[r]
+            family_out[written] = family[r]
+            written += 1
+    return G_out[:written], h_out[:written], point_out[:written], family_out[:written]

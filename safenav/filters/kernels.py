@@ -1,0 +1,85 @@
+"""Compiled kernels of the CBF's obstacle rows: the same rows as :mod:`safenav.filters.rows`, in one pass.
+
+The row families (:mod:`~safenav.filters.rows`) are written with numpy over arrays of a few dozen
+point-disk pairs; each call then spends most of its time in numpy's per-operation overhead (about
+a hundred operations a call), not in arithmetic. With numba installed (``pip install
+"safenav[fast]"``) the disk and cover bodies' obstacle rows of a call are built by two compiled
+loops instead: :func:`pair_minima` (every point's smallest barrier, which sets how far the cut
+reaches) and :func:`obstacle_rows` (the kept pairs' tilted half-planes, then the barrier, braking
+and sweep rows and their ramp corners, in the order :mod:`~safenav.filters.rows` stacks them).
+
+The numpy families stay the reference: each line here mirrors a line there (named in the
+comments), and ``tests/filters/test_kernels.py`` checks that both give the same rows, to rounding,
+on random problems and on every call of recorded closed loops. The polygon body and the reference
+without the cut (``cut=False``, which the contract checker compares against) always use numpy.
+
+``CBFConfig.kernels`` picks the path: ``"auto"`` (numba when installed), ``"numba"`` (raises
+:class:`~safenav.errors.MissingDependency` with the pip line when absent) or ``"numpy"``.
+The kernels are compiled on first use (a few seconds, cached on disk by numba afterwards);
+:func:`load` compiles them when the filter is built, so no control call pays for it.
+"""
+
+from __future__ import annotations
+
+import threading
+from types import SimpleNamespace
+
+import numpy as np
+
+from safenav._optional import require
+
+__all__ = ["KERNELS", "available", "load", "resolve"]
+
+KERNELS = ("auto", "numba", "numpy")
+"""Values of ``CBFConfig.kernels``."""
+
+_lock = threading.Lock()
+_compiled: SimpleNamespace | None = None
+
+
+def available() -> bool:
+    """Whether numba can be imported."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def resolve(name: str) -> str:
+    """``"numba"`` or ``"numpy"``: the path ``name`` (one of :data:`KERNELS`) selects here."""
+    if name == "auto":
+        return "numba" if available() else "numpy"
+    if name == "numba":
+        require("numba", extra="fast", purpose="the compiled CBF rows (CBFConfig.kernels='numba')")
+    return name
+
+
+def load() -> SimpleNamespace:
+    """The compiled kernels (``pair_minima``, ``obstacle_rows``), compiled and warmed on the first call."""
+    global _compiled
+    with _lock:
+        if _compiled is None:
+            _compiled = _build()
+        return _compiled
+
+
+def _build() -> SimpleNamespace:
+    require("numba", extra="fast", purpose="the compiled CBF rows (CBFConfig.kernels='numba')")
+    from safenav.filters import _compiled_rows
+
+    kernels = SimpleNamespace(pair_minima=_compiled_rows.pair_minima, obstacle_rows=_compiled_rows.obstacle_rows)
+    _warm(kernels)
+    return kernels
+
+
+def _warm(kernels: SimpleNamespace) -> None:
+    """Compile both kernels for the argument types the filter passes (float64 arrays, float scalars)."""
+    points, uncertainty = np.array([[0.5, 0.1], [0.6, -0.2]]), np.zeros(2)
+    control, offsets = np.array([[0.1, 0.0]]), np.array([0.3])
+    per_point = kernels.pair_minima(points, uncertainty, control, offsets)
+    box = np.array([-0.5, -1.0]), np.array([0.5, 1.0])
+    z = np.array([-0.5, -1.0, 0.0, 0.0]), np.array([0.5, 1.0, 0.5, 1.0])
+    kernels.obstacle_rows(points, uncertainty, control, offsets, per_point, 1.0, 0.5, 0.1, 0.01, 0.2, 0.2, 0.05,
+                          float(per_point.min()), True, np.array([0.2, 0.1]), 1.0, 2.0, 0.05, 0.01, 1.0, box[0], box[1],
+                          0.5, z[0], z[1])

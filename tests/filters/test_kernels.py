@@ -1,0 +1,131 @@
+"""The compiled obstacle rows (safenav.filters.kernels) against the numpy families they mirror."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from safenav import Pose2D, preset, unicycle_step
+from safenav.errors import MissingDependency, SafeNavError, UnknownName
+from safenav.filters import CBFSafetyFilter, kernels
+from safenav.filters.base import View
+from safenav.filters.perception import Frontier
+from safenav.synthetic import Scene, Segment, synthetic_scan
+
+numba = pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
+
+finite = dict(allow_nan=False, allow_infinity=False)
+
+
+def view_of(points: np.ndarray, uncertainty: np.ndarray) -> View:
+    none = np.empty((0, 2))
+    return View((), points, uncertainty, points.shape[0], Frontier(none, none, False, False, False, False))
+
+
+def sorted_rows(rows) -> np.ndarray:
+    """The rows as one array ``(k, 7)`` (G, h, point, family), lexicographically sorted."""
+    table = np.column_stack((rows.G, rows.h, rows.point, rows.family))
+    return table[np.lexsort(table.T[::-1])] if len(table) else table
+
+
+@st.composite
+def problems(draw):
+    robot = preset(draw(st.sampled_from(["rosbot", "puzzlebot", "m2wr"])))
+    body = draw(st.sampled_from(["disk", "cover"]))
+    dt = draw(st.sampled_from([0.02, 0.05, 0.1, 0.25]))
+    time_constant = draw(st.sampled_from([0.0, 0.0, 0.1]))
+    count = draw(st.integers(0, 40))
+    near = draw(st.floats(0.0, 1.5))
+    points = np.array([[draw(st.floats(-near - 0.5, near + 0.5, **finite)), draw(st.floats(-near - 0.5, near + 0.5,
+                                                                                            **finite))]
+                       for _ in range(count)]).reshape(-1, 2)
+    uncertainty = np.array([draw(st.sampled_from([0.0, 0.0, 0.01, 0.05])) for _ in range(count)])
+    velocity = None if draw(st.booleans()) else np.array([draw(st.floats(robot.v_min, robot.v_max)),
+                                                          draw(st.floats(-robot.omega_max, robot.omega_max))])
+    u_nom = np.array([draw(st.floats(robot.v_min, robot.v_max)), draw(st.floats(-robot.omega_max, robot.omega_max))])
+    return robot, body, dt, time_constant, points, uncertainty, velocity, u_nom
+
+
+@settings(max_examples=300, deadline=None)
+@given(problems())
+def test_the_compiled_rows_are_the_numpy_rows(problem):
+    """Every row of every family, its right side, point and family, to rounding, on random points (some inside
+    the body and the margin, some at a control point's distance), with and without the velocity."""
+    robot, body, dt, time_constant, points, uncertainty, velocity, u_nom = problem
+    compiled = CBFSafetyFilter(robot, dt, body=body, time_constant=time_constant, kernels="numba")
+    reference = CBFSafetyFilter(robot, dt, body=body, time_constant=time_constant, kernels="numpy")
+    assert compiled._kernels is not None and reference._kernels is None
+    view = view_of(points, uncertainty)
+    a = compiled._constraints(view, velocity, dt, u_nom=u_nom)
+    b = reference._constraints(view, velocity, dt, u_nom=u_nom)
+    assert a.min_barrier == pytest.approx(b.min_barrier, abs=1e-12)
+    np.testing.assert_allclose(a.barrier, b.barrier, atol=1e-12)
+    # the same rows in the same order (the order the QP sees)
+    assert len(a.rows) == len(b.rows)
+    np.testing.assert_array_equal(a.rows.point, b.rows.point)
+    np.testing.assert_array_equal(a.rows.family, b.rows.family)
+    np.testing.assert_allclose(a.rows.G, b.rows.G, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.rows.h, b.rows.h, rtol=1e-12, atol=1e-12)
+
+
+def test_a_point_at_a_control_point_gets_the_same_rows():
+    """The degenerate pair (a point exactly at a control point) is pushed back along -x by both."""
+    robot = preset("rosbot")
+    compiled = CBFSafetyFilter(robot, 0.05, kernels="numba")
+    reference = CBFSafetyFilter(robot, 0.05, kernels="numpy")
+    points = np.array([[compiled.lookahead, 0.0], [0.5, 0.2]])
+    view = view_of(points, np.zeros(2))
+    for velocity in (None, np.array([0.3, 0.5])):
+        a = compiled._constraints(view, velocity, 0.05)
+        b = reference._constraints(view, velocity, 0.05)
+        np.testing.assert_array_equal(sorted_rows(a.rows), sorted_rows(b.rows))
+        assert np.all(np.isfinite(a.rows.G)) and np.all(np.isfinite(a.rows.h))
+
+
+@pytest.mark.parametrize("name", ["rosbot", "m2wr"])
+@pytest.mark.parametrize("dt", [0.02, 0.1])
+def test_closed_loops_give_the_same_commands(name, dt):
+    """Issue 18's wall scene (a wall just beside the path, the nominal turning into it at full speed), both
+    kernels side by side on every call, the loop driven by the numpy filter: the same command to 1e-12 and
+    the same status on every call, and the body clear of the wall."""
+    robot = preset(name)
+    rng = np.random.default_rng(3)
+    for side in (1.0, -1.0):
+        scene = Scene.of(Segment((0.16, side * (robot.radius + 0.05)), (4.0, side * (robot.radius + 0.05))))
+        compiled = CBFSafetyFilter(robot, dt, kernels="numba")
+        reference = CBFSafetyFilter(robot, dt, kernels="numpy")
+        pose, velocity = Pose2D(), np.zeros(2)
+        nominal = np.array([robot.v_max, side * robot.omega_max])
+        for _ in range(round(2.0 / dt)):
+            scan = synthetic_scan(robot, scene, pose, noise_std=robot.lidar.noise_std, rng=rng)
+            a = compiled.filter(nominal, scan, velocity=velocity)
+            b = reference.filter(nominal, scan, velocity=velocity)
+            np.testing.assert_allclose(a.u, b.u, atol=1e-12)
+            assert a.status == b.status
+            assert b.clearance > 0.0
+            velocity = robot.clip(b.u, velocity, dt)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt)
+
+
+def test_kernels_setting_is_checked():
+    with pytest.raises(UnknownName) as error:
+        CBFSafetyFilter(preset("rosbot"), kernels="cython")
+    assert isinstance(error.value, SafeNavError) and isinstance(error.value, ValueError)
+    assert "cython" in str(error.value)
+    assert kernels.resolve("auto") == "numba"
+    assert CBFSafetyFilter(preset("rosbot"), body="polygon").rows_body.name == "polygon"   # numpy, kernels or not
+
+
+def test_asking_for_numba_without_it_names_the_pip_line(monkeypatch):
+    monkeypatch.setattr(kernels, "require", _missing)
+    monkeypatch.setattr(kernels, "available", lambda: False)
+    with pytest.raises(MissingDependency) as error:
+        CBFSafetyFilter(preset("rosbot"), kernels="numba")
+    assert 'pip install "safenav[fast]"' in str(error.value) or "safenav[fast]" in str(error.value)
+    assert CBFSafetyFilter(preset("rosbot"))._kernels is None   # "auto" falls back to numpy
+
+
+def _missing(module: str, *, extra: str, purpose: str, package: str | None = None):
+    raise MissingDependency(package or module, purpose, extra)
