@@ -23,19 +23,29 @@ fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ah
 0.15 m beside the body; the nominal and the velocity are 30 % of the top speed, straight ahead; each
 scan fresh and 0.1 s old (as a ROS node's scans arrive: the filter first moves them into the current frame).
 
+``--gc`` times a full garbage collection in a process that has built the filters (a CBF and an MPC of the
+m2wr at 20 ms): with the numpy kernels or numba's, with the heap as built or frozen by the first filter
+(:mod:`safenav.filters.heap`), each in a fresh process: how many objects a collection visits, its median and
+largest pause. Such a pause lands in whichever control call the allocations trigger it in.
+
 Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``)::
 
     python -m benchmarks.filter_latency --deadline --json latency.json
     python benchmarks/filter_latency.py --deadline --only-deadline
     python -m benchmarks.filter_latency --reach --only-reach
+    python -m benchmarks.filter_latency --gc --only-gc
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import json
 import math
+import os
+import subprocess
 import sys
+import textwrap
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -337,6 +347,40 @@ def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int) ->
     return rows
 
 
+_GC_SCRIPT = textwrap.dedent("""
+    import gc, json, sys, time
+    from safenav import preset
+    from safenav.filters import CBFSafetyFilter, MPCSafetyFilter
+    kernels = sys.argv[1]
+    CBFSafetyFilter(preset("m2wr"), 0.02, kernels=kernels)
+    MPCSafetyFilter(preset("m2wr"), 0.02, kernels=kernels)
+    visited = len(gc.get_objects())
+    pauses = []
+    for _ in range(int(sys.argv[2])):
+        start = time.perf_counter()
+        gc.collect()
+        pauses.append(time.perf_counter() - start)
+    print(json.dumps({"visited": visited, "frozen": gc.get_freeze_count(), "pauses_s": pauses}))
+""")
+GC_SETTINGS = (("numpy", False), ("numba", False), ("numpy", True), ("numba", True))
+"""(kernels, heap frozen) of the --gc table."""
+
+
+def gc_pauses(repeat: int = 20) -> list[dict[str, Any]]:
+    """A full collection's pause in a fresh process per setting of :data:`GC_SETTINGS` (see the module docstring)."""
+    rows = []
+    for kernels, frozen in GC_SETTINGS:
+        env = {**os.environ, "SAFENAV_GC_FREEZE": "1" if frozen else "0"}
+        output = subprocess.run([sys.executable, "-c", _GC_SCRIPT, kernels, str(repeat)], env=env, check=True,
+                                capture_output=True, text=True).stdout
+        measured = json.loads(output.strip().splitlines()[-1])
+        pauses = np.asarray(measured["pauses_s"]) * 1e3
+        rows.append({"kernels": kernels, "frozen": frozen, "visited": measured["visited"],
+                     "frozen_objects": measured["frozen"], "median_ms": float(np.median(pauses)),
+                     "max_ms": float(pauses.max())})
+    return rows
+
+
 def deadline_table(rows: Sequence[dict[str, Any]]) -> str:
     table = []
     for row in rows:
@@ -386,6 +430,8 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                         help="also time the CBF by what lies within its reach (open space to a wall beside)")
     parser.add_argument("--only-reach", action="store_true", help="run the --reach table alone")
     parser.add_argument("--reach-calls", type=int, default=2000, help="calls per scene of --reach (default: 2000)")
+    parser.add_argument("--gc", action="store_true", help="time a full garbage collection (see the docstring)")
+    parser.add_argument("--only-gc", action="store_true", help="run the --gc table alone")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     args = parser.parse_args(argv)
@@ -403,6 +449,16 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                               for row in results["reach"]]))
         print()
         if args.only_reach:
+            write_json(args.json, results)
+            return 0
+    if args.gc or args.only_gc:
+        results["gc"] = gc_pauses()
+        print("a full garbage collection in a process that has built the filters (m2wr, dt 0.02, CBF and MPC):")
+        print(markdown_table(["kernels", "heap", "objects visited", "frozen objects", "median ms", "max ms"],
+                             [[row["kernels"], "frozen" if row["frozen"] else "as built", row["visited"],
+                               row["frozen_objects"], row["median_ms"], row["max_ms"]] for row in results["gc"]]))
+        print()
+        if args.only_gc:
             write_json(args.json, results)
             return 0
     if args.deadline or args.only_deadline:

@@ -252,3 +252,137 @@ def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor
             family_out[written] = family[r]
             written += 1
     return G_out[:written], h_out[:written], point_out[:written], family_out[:written]
+
+
+@_jit
+def shadow_beams(ranges, readings, hit, no_return, limit, spacing, jump, wraps):
+    """perception.shadow_points of one scan, before the beams' directions: the beam and the range [m] of every
+    point along the edges of what obstacles hide (``limit``: the reach plus the lidar's lever [m])."""
+    n = ranges.size
+    steps = np.zeros(n, dtype=np.intp)
+    total = 0
+    for i in range(n):
+        if readings[i] != hit or not ranges[i] < limit - spacing:
+            continue
+        beyond = ranges[i] + jump
+        edge = False
+        for j in (i - 1, i + 1):
+            if j < 0 or j >= n:
+                if not wraps:
+                    continue
+                j = n - 1 if j < 0 else 0
+            if readings[j] == hit:
+                farther = ranges[j]
+            elif readings[j] == no_return:
+                farther = np.inf
+            else:
+                farther = -np.inf
+            if farther > beyond:
+                edge = True
+        if edge:
+            steps[i] = math.floor((limit - ranges[i]) / spacing)
+            total += steps[i]
+    beams = np.empty(total, dtype=np.intp)
+    distances = np.empty(total)
+    written = 0
+    for i in range(n):
+        for step in range(1, steps[i] + 1):
+            beams[written] = i
+            distances[written] = ranges[i] + spacing * step
+            written += 1
+    return beams, distances
+
+
+@_jit
+def sqp_values(centres, points, inverse_radii, radii, row_state, row_window, check_window):
+    """mpc.sqp.DirectSQP.solve, the start of an iteration: every clearance row's value at the iterate ``(M, C)``
+    [m] and its ``dx``, ``dy`` (centre minus point); the rows that start in the QP (active at the last answer,
+    and each column's nearest within ``row_window``) and those checked (within ``check_window``), flat."""
+    count, columns = points.shape[0], centres.shape[1]
+    dx = np.empty((count, columns))
+    dy = np.empty((count, columns))
+    values = np.empty((count, columns))
+    working = np.empty(count * columns, dtype=np.bool_)
+    candidates = np.empty(count * columns, dtype=np.bool_)
+    for i in range(count):
+        for c in range(columns):
+            x = centres[0, c] - points[i, 0]
+            y = centres[1, c] - points[i, 1]
+            value = x * x
+            value += y * y
+            value *= inverse_radii[i, c]
+            value -= radii[i, c]
+            value *= 0.5
+            dx[i, c], dy[i, c], values[i, c] = x, y, value
+            flat = i * columns + c
+            working[flat] = row_state[flat] != 0
+            candidates[flat] = value <= check_window
+    if count:
+        for c in range(columns):
+            nearest = 0
+            for i in range(1, count):
+                if values[i, c] < values[nearest, c]:
+                    nearest = i
+            if values[nearest, c] <= row_window:
+                working[nearest * columns + c] = True
+    return dx, dy, values, working, candidates
+
+
+@_jit
+def sqp_clearance_rows(rows, columns, centre_jacobian, dx, dy, inverse_radii, relief, values, knots, matrix, n_linear,
+                       n_knot_vars, slack_column):
+    """mpc.sqp.DirectSQP.solve, a round's QP rows: the clearance rows ``rows`` (flat indices) written into
+    ``matrix`` below its ``n_linear`` linear rows (``-gradient . x - relief b - s <= value - gradient . knots``);
+    returns their right sides."""
+    width = matrix.shape[1]
+    upper = np.empty(rows.size)
+    for r in range(rows.size):
+        flat = rows[r]
+        i, c = flat // columns, flat % columns
+        scale = inverse_radii[i, c]
+        a = dx[i, c] * -scale
+        b = dy[i, c] * scale
+        out = n_linear + r
+        total = 0.0
+        for j in range(n_knot_vars):
+            entry = centre_jacobian[0, c, j] * a
+            entry -= centre_jacobian[1, c, j] * b
+            matrix[out, j] = entry
+            total += entry * knots[j]
+        matrix[out, n_knot_vars] = -relief[i, c]
+        for j in range(n_knot_vars + 1, width):
+            matrix[out, j] = 0.0
+        matrix[out, slack_column[i]] = -1.0
+        upper[r] = values[i, c] + total
+    return upper
+
+
+@_jit
+def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, buffer_slack, slacks, candidates,
+                 working, tolerance):
+    """mpc.sqp.DirectSQP.solve, a round's check: every checked row linearised at the QP's answer (through the
+    centres' displacement ``centre_jacobian @ move``), the mask of those it misses by more than ``tolerance``
+    [m] that are not in the QP yet."""
+    count, columns = dx.shape
+    moved_x = np.empty(columns)
+    moved_y = np.empty(columns)
+    for c in range(columns):
+        sx = 0.0
+        sy = 0.0
+        for j in range(move.size):
+            sx += centre_jacobian[0, c, j] * move[j]
+            sy += centre_jacobian[1, c, j] * move[j]
+        moved_x[c], moved_y[c] = sx, sy
+    violated = np.zeros(count * columns, dtype=np.bool_)
+    for i in range(count):
+        for c in range(columns):
+            flat = i * columns + c
+            if working[flat] or not candidates[flat]:
+                continue
+            linearised = dx[i, c] * moved_x[c]
+            linearised += dy[i, c] * moved_y[c]
+            linearised *= inverse_radii[i, c]
+            linearised += values[i, c]
+            linearised += relief[i, c] * buffer_slack + slacks[i]
+            violated[flat] = linearised < -tolerance
+    return violated

@@ -393,6 +393,8 @@ class SafetyFilter(abc.ABC):
 
     name = "filter"
     margin: float = 0.0
+    _kernels: Any = None
+    """The compiled kernels (:func:`safenav.filters.kernels.load`) the subclass's config picks; ``None``: numpy."""
 
     def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None,
                  other_bodies: Sequence[BodyModel] = (), scan_timeout: float = 0.5,
@@ -976,7 +978,7 @@ class SafetyFilter(abc.ABC):
         current = beam_points(scans, self.body)
         reach = self.horizon_reach(period)
         horizon = horizon_points(scans, reach, self.min_obstacle_width)
-        shadows = shadow_points(scans, reach, self.shadow_jump)
+        shadows = shadow_points(scans, reach, self.shadow_jump, self._kernels)
         if shadows.shape[0]:
             horizon = np.vstack((horizon, shadows)) if horizon.shape[0] else shadows
         seen = np.vstack((current, horizon)) if horizon.shape[0] else current

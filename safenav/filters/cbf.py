@@ -16,7 +16,7 @@ import numpy as np
 import qpsolvers
 
 from safenav import _checks
-from safenav.filters import kernels
+from safenav.filters import heap, kernels
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
@@ -377,6 +377,7 @@ class CBFSafetyFilter(SafetyFilter):
         self.backend: QPBackend = make_backend(cfg.solver)
         # The compiled obstacle rows (disk and cover bodies), compiled here rather than in a control call.
         self._kernels = kernels.load() if kernels.resolve(cfg.kernels) == "numba" else None
+        heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
         """``body`` with its control points ``lookahead`` ahead [m], the farthest of them from the base origin
@@ -527,8 +528,7 @@ class CBFSafetyFilter(SafetyFilter):
         """The obstacle rows of the disk bodies by :mod:`~safenav.filters.kernels` (what the numpy branch of
         :meth:`_constraints` builds with the cut), every point's smallest barrier and ``H`` [m]."""
         compiled, shape = self._kernels, self._shape
-        points = np.ascontiguousarray(points, dtype=float)
-        uncertainty = np.ascontiguousarray(uncertainty, dtype=float)
+        points, uncertainty = kernels.plain(points), kernels.plain(uncertainty)
         if not points.shape[0]:
             return families.stack(), np.empty(0), cut_barrier
         per_point = compiled.pair_minima(points, uncertainty, shape.control, shape.offsets)
@@ -540,14 +540,17 @@ class CBFSafetyFilter(SafetyFilter):
         if with_velocity:
             braking_reach = float(self._braking_reach(lower, upper, velocity, period, reaction))
             lag = lag_fraction(period, self.time_constant)
-            moving = np.asarray(velocity, dtype=float)
+            moving = kernels.plain(velocity)
         else:
             braking_reach, lag, moving = 0.0, 0.0, np.zeros(2)
+        robot = self.robot
+        # every scalar a float and every array plain: one compiled specialisation, no compilation in a control call
         G, h, point, family = compiled.obstacle_rows(
-            points, uncertainty, shape.control, shape.offsets, per_point, limit, 1.0 - self.gamma, travel, kappa,
-            self.gamma, self._own_rate(velocity), period, min_barrier, with_velocity, moving, self.robot.a_max,
-            self.robot.alpha_max, reaction, self._allowance, braking_reach, np.asarray(lower, dtype=float),
-            np.asarray(upper, dtype=float), lag, z_box[0], z_box[1])
+            points, uncertainty, shape.control, shape.offsets, per_point, limit, float(1.0 - self.gamma),
+            float(travel), float(kappa), float(self.gamma), float(self._own_rate(velocity)), float(period),
+            float(min_barrier), with_velocity, moving, float(robot.a_max), float(robot.alpha_max), float(reaction),
+            float(self._allowance), braking_reach, kernels.plain(lower), kernels.plain(upper), float(lag),
+            kernels.plain(z_box[0]), kernels.plain(z_box[1]))
         return families.Rows(G, h, point, family), per_point, min_barrier
 
     def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], velocity: np.ndarray | None,

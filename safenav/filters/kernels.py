@@ -1,4 +1,4 @@
-"""Compiled kernels of the CBF's obstacle rows: the same rows as :mod:`safenav.filters.rows`, in one pass.
+"""Compiled kernels of the filters' per-call arithmetic: the same numbers as the numpy code they mirror.
 
 The row families (:mod:`~safenav.filters.rows`) are written with numpy over arrays of a few dozen
 point-disk pairs; each call then spends most of its time in numpy's per-operation overhead (about
@@ -28,7 +28,7 @@ import numpy as np
 
 from safenav._optional import require
 
-__all__ = ["KERNELS", "available", "load", "resolve"]
+__all__ = ["KERNELS", "available", "frozen", "load", "plain", "resolve"]
 
 KERNELS = ("auto", "numba", "numpy")
 """Values of ``CBFConfig.kernels``."""
@@ -64,11 +64,28 @@ def load() -> SimpleNamespace:
         return _compiled
 
 
+def plain(array: np.ndarray) -> np.ndarray:
+    """``array`` as the kernels were compiled for it: C-contiguous, writable float64 (a copy only when it is not)."""
+    if array.dtype == np.float64 and array.flags.c_contiguous and array.flags.writeable:
+        return array
+    return np.array(array, dtype=float, order="C")
+
+
+def frozen(array: np.ndarray) -> np.ndarray:
+    """``array`` read-only, as a scan's arrays are (and the kernels were compiled for)."""
+    if not array.flags.writeable:
+        return array
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
 def _build() -> SimpleNamespace:
     require("numba", extra="fast", purpose="the compiled CBF rows (CBFConfig.kernels='numba')")
     from safenav.filters import _compiled_rows
 
-    kernels = SimpleNamespace(pair_minima=_compiled_rows.pair_minima, obstacle_rows=_compiled_rows.obstacle_rows)
+    kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
+        "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated")})
     _warm(kernels)
     return kernels
 
@@ -83,3 +100,14 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.obstacle_rows(points, uncertainty, control, offsets, per_point, 1.0, 0.5, 0.1, 0.01, 0.2, 0.2, 0.05,
                           float(per_point.min()), True, np.array([0.2, 0.1]), 1.0, 2.0, 0.05, 0.01, 1.0, box[0], box[1],
                           0.5, z[0], z[1])
+    kernels.shadow_beams(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 2.0,
+                         0.05, 0.3, True)
+    # the MPC's SQP: two points, one knot's two disks, two knot variables and one slack per point
+    centres, jacobian, radii = np.array([[0.1, 0.2], [0.0, 0.1]]), np.ones((2, 2, 2)), np.full((2, 2), 0.3)
+    dx, dy, values, working, candidates = kernels.sqp_values(centres, points, 1.0 / radii, radii,
+                                                             np.zeros(4, dtype=np.int8), 0.2, 1.0)
+    matrix = np.zeros((1 + 2, 5))
+    kernels.sqp_clearance_rows(np.array([0, 3], dtype=np.intp), 2, jacobian, dx, dy, 1.0 / radii, radii, values,
+                               np.zeros(2), matrix, 1, 2, np.array([3, 4], dtype=np.intp))
+    kernels.sqp_violated(jacobian, np.zeros(2), dx, dy, 1.0 / radii, values, radii, 0.0, np.zeros(2), candidates,
+                         working, 1e-9)

@@ -30,11 +30,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from safenav.filters.body import BodyModel
+from safenav.filters.kernels import frozen
 from safenav.geometry import TWO_PI, Pose2D, unicycle_step
 from safenav.scan import LaserScan, Reading
 
@@ -184,7 +185,7 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | No
 SHADOW_SPACING = 0.05
 
 
-def shadow_points(scans: tuple[LaserScan, ...], reach: float, jump: float) -> np.ndarray:
+def shadow_points(scans: tuple[LaserScan, ...], reach: float, jump: float, compiled: Any = None) -> np.ndarray:
     """Points along the edges of what obstacles hide within ``reach`` of the base origin, ``(N, 2)`` [m].
 
     A beam that hits an obstacle says nothing about the space behind it. Where the next beam reads
@@ -196,12 +197,21 @@ def shadow_points(scans: tuple[LaserScan, ...], reach: float, jump: float) -> np
     (never remembered): a plan may go round an occluder, not into its shadow before it has seen it. Behind
     a wall they lie behind the wall; seen from a lidar at the base origin they are all farther than the
     occluder itself, so only motion towards the shadow meets them.
+
+    ``compiled``: the kernels of :mod:`~safenav.filters.kernels` (the same points, by one compiled loop per scan).
     """
     pieces = []
     for scan in scans:
         ranges, readings = scan.ranges, scan.readings
-        hit = readings == _HIT
         lever = math.hypot(scan.mount.x, scan.mount.y)
+        if compiled is not None:
+            wraps = bool(scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9)
+            beams, distances = compiled.shadow_beams(frozen(ranges), frozen(readings), _HIT, _NO_RETURN,
+                                                     float(reach + lever), SHADOW_SPACING, float(jump), wraps)
+            if beams.size:
+                pieces.append(scan.beam_points(beams, distances))
+            continue
+        hit = readings == _HIT
         near = hit & (ranges < reach + lever - SHADOW_SPACING)
         if not near.any():
             continue

@@ -44,3 +44,15 @@ def test_the_reach_table_times_every_preset_in_every_scene(tmp_path):
         assert row["end_to_end"]["n"] == 3 and row["late_scan"]["n"] == 3 and sum(row["statuses"].values()) == 3
         assert (row["points"] == 0) == (row["scene"] == "nothing in range")
         assert not row["modified"] or row["scene"].startswith("wall")
+
+
+def test_the_gc_table_measures_a_full_collection_in_fresh_processes(tmp_path):
+    path = tmp_path / "gc.json"
+    assert filter_latency.main(["--only-gc", "--json", str(path)]) == 0
+    rows = {(row["kernels"], row["frozen"]): row for row in json.loads(path.read_text())["gc"]}
+    assert set(rows) == set(filter_latency.GC_SETTINGS)
+    for kernels in ("numpy", "numba"):
+        built, frozen = rows[kernels, False], rows[kernels, True]
+        assert built["frozen_objects"] == 0 and built["visited"] > 50_000
+        assert frozen["frozen_objects"] > 50_000 and frozen["visited"] < 0.05 * built["visited"]
+    assert rows["numba", False]["visited"] > rows["numpy", False]["visited"]

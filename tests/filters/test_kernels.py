@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,9 +11,9 @@ from hypothesis import strategies as st
 
 from safenav import Pose2D, preset, unicycle_step
 from safenav.errors import MissingDependency, SafeNavError, UnknownName
-from safenav.filters import CBFSafetyFilter, kernels
+from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, kernels
 from safenav.filters.base import View
-from safenav.filters.perception import Frontier
+from safenav.filters.perception import Frontier, shadow_points
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
 numba = pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
@@ -84,25 +86,33 @@ def test_a_point_at_a_control_point_gets_the_same_rows():
         assert np.all(np.isfinite(a.rows.G)) and np.all(np.isfinite(a.rows.h))
 
 
-@pytest.mark.parametrize("name", ["rosbot", "m2wr"])
-@pytest.mark.parametrize("dt", [0.02, 0.1])
-def test_closed_loops_give_the_same_commands(name, dt):
+@pytest.mark.parametrize(("kind", "name", "dt"), [
+    ("cbf", "rosbot", 0.02), ("cbf", "rosbot", 0.1), ("cbf", "m2wr", 0.02), ("cbf", "m2wr", 0.1),
+    ("mpc", "rosbot", 0.05), ("mpc", "m2wr", 0.1)])
+def test_closed_loops_give_the_same_commands(kind, name, dt):
     """Issue 18's wall scene (a wall just beside the path, the nominal turning into it at full speed), both
-    kernels side by side on every call, the loop driven by the numpy filter: the same command to 1e-12 and
-    the same status on every call, and the body clear of the wall."""
+    kernels side by side on every call, the loop driven by the numpy filter: the same command to 1e-12 (the
+    MPC's plans to 1e-9) and the same status on every call, and the body clear of the wall. (The MPC without a
+    compute budget: a call that runs out of it follows the stored plan, whichever kernels.)"""
     robot = preset(name)
     rng = np.random.default_rng(3)
+    tolerance = 1e-12 if kind == "cbf" else 1e-9
     for side in (1.0, -1.0):
         scene = Scene.of(Segment((0.16, side * (robot.radius + 0.05)), (4.0, side * (robot.radius + 0.05))))
-        compiled = CBFSafetyFilter(robot, dt, kernels="numba")
-        reference = CBFSafetyFilter(robot, dt, kernels="numpy")
+        if kind == "cbf":
+            compiled = CBFSafetyFilter(robot, dt, kernels="numba")
+            reference = CBFSafetyFilter(robot, dt, kernels="numpy")
+        else:
+            compiled = MPCSafetyFilter(robot, dt, kernels="numba", budget=math.inf)
+            reference = MPCSafetyFilter(robot, dt, kernels="numpy", budget=math.inf)
+            assert compiled.backend.kernels is not None and reference.backend.kernels is None
         pose, velocity = Pose2D(), np.zeros(2)
         nominal = np.array([robot.v_max, side * robot.omega_max])
         for _ in range(round(2.0 / dt)):
             scan = synthetic_scan(robot, scene, pose, noise_std=robot.lidar.noise_std, rng=rng)
             a = compiled.filter(nominal, scan, velocity=velocity)
             b = reference.filter(nominal, scan, velocity=velocity)
-            np.testing.assert_allclose(a.u, b.u, atol=1e-12)
+            np.testing.assert_allclose(a.u, b.u, atol=tolerance)
             assert a.status == b.status
             assert b.clearance > 0.0
             velocity = robot.clip(b.u, velocity, dt)
@@ -129,3 +139,82 @@ def test_asking_for_numba_without_it_names_the_pip_line(monkeypatch):
 
 def _missing(module: str, *, extra: str, purpose: str, package: str | None = None):
     raise MissingDependency(package or module, purpose, extra)
+
+
+def _recorded_scans(folder) -> list:
+    from safenav.datasets import load_recording, recording_files
+
+    scans = []
+    for path in recording_files(folder).values():
+        scans += [recorded.scan for recorded in load_recording(path, limit=40)]
+    return scans
+
+
+@pytest.mark.parametrize("reach", [0.3, 1.0, 4.0])
+def test_the_compiled_shadow_points_are_the_numpy_ones(lidar_data, reach):
+    """Every real recorded scan (full turns and partial fields of view, NaN, +-inf, out-of-range readings)
+    and synthetic scans of every preset: the edges of what obstacles hide, the same points in the same order."""
+    compiled = kernels.load()
+    scans = _recorded_scans(lidar_data)
+    rng = np.random.default_rng(5)
+    for name in ("rosbot", "puzzlebot", "m2wr"):
+        robot = preset(name)
+        for _ in range(10):
+            scene = Scene.of(*(Segment(tuple(rng.uniform(-3, 3, 2)), tuple(rng.uniform(-3, 3, 2))) for _ in range(4)))
+            scans.append(synthetic_scan(robot, scene, Pose2D(), noise_std=0.01, rng=rng))
+    assert len(scans) > 100
+    found = 0
+    for scan in scans:
+        a = shadow_points((scan,), reach, 0.3, compiled)
+        b = shadow_points((scan,), reach, 0.3)
+        np.testing.assert_array_equal(a, b)
+        found += a.shape[0]
+    assert found > 0
+    pair = (scans[0], scans[-1])
+    np.testing.assert_array_equal(shadow_points(pair, reach, 0.3, compiled), shadow_points(pair, reach, 0.3))
+
+
+@pytest.mark.parametrize("full_turn", [True, False])
+def test_an_occluder_at_the_first_beam_is_an_edge_only_round_a_full_turn(full_turn):
+    """Beam 0 hits at 1 m, the last beam has no return: round a full turn they are neighbours (an edge of
+    what beam 0's obstacle hides), across the gap of a partial field of view they are not."""
+    from safenav.scan import LaserScan
+
+    n = 360
+    increment = (2.0 * np.pi if full_turn else np.pi) / n
+    ranges = np.full(n, 1.0)
+    ranges[-1] = np.inf
+    ranges[1] = 1.0
+    scan = LaserScan(angle_min=0.0, angle_max=increment * (n - 1), angle_increment=increment, ranges=ranges,
+                     range_min=0.1, range_max=10.0, mount=(0.0, 0.0, 0.0))
+    a = shadow_points((scan,), 2.0, 0.3, kernels.load())
+    np.testing.assert_array_equal(a, shadow_points((scan,), 2.0, 0.3))
+    at_first = np.isclose(np.arctan2(a[:, 1], a[:, 0]), 0.0, atol=1e-9)
+    assert at_first.any() == full_turn
+
+
+def test_the_compiled_sqp_plans_every_recorded_problem_as_numpy_does():
+    """The MPC's direct SQP with the compiled clearance rows (values, QP rows, check) and with numpy, on the 500
+    recorded closed-loop problems of test_mpc_replay: both solve or fail together, the same plans to 1e-9 (the
+    rows differ by rounding only; the replay test compares the compiled SQP with casadi's sqpmethod)."""
+    replay = pytest.importorskip("tests.filters.test_mpc_replay")
+    if not replay.DATA.exists():
+        pytest.skip("tests/data/mpc_replay.npz is missing")
+    cases = replay.problems()
+    assert len(cases) >= 500
+    worst, solved = 0.0, 0
+    for case in cases:
+        safety = replay.make(case["config"], "daqp")
+        assert safety.backend.kernels is not None
+        _, compiled = replay.solve(case, "daqp")
+        safety.backend.kernels = None
+        try:
+            _, reference = replay.solve(case, "daqp")
+        finally:
+            safety.backend.kernels = safety._kernels
+        assert (compiled.commands is None) == (reference.commands is None)
+        if compiled.commands is not None:
+            solved += 1
+            worst = max(worst, float(np.max(np.abs(compiled.commands - reference.commands))))
+    assert solved >= 490
+    assert worst <= 1e-9, worst

@@ -11,6 +11,7 @@ import casadi
 from safenav import _checks
 from safenav.errors import UnknownName
 from safenav.filters.defaults import default_margin, default_weights
+from safenav.filters.kernels import KERNELS
 from safenav.filters.qp import available_solvers
 from safenav.robot import RobotSpec
 
@@ -152,6 +153,8 @@ class MPCConfig:
             :attr:`~safenav.filters.SafetyFilter.smallest_obstacle`). Thinner obstacles can hide
             between two beams until they are near; when this is smaller, the filter keeps able to stop
             within the range where a beam must hit one (it drives slower).
+        kernels: ``"auto"``, ``"numba"`` or ``"numpy"``: the compiled perception kernels (and those of the
+            ``reference="cbf"`` filter), as :attr:`CBFConfig.kernels <safenav.filters.CBFConfig>`.
     """
 
     horizon_time: float | None = None
@@ -183,6 +186,7 @@ class MPCConfig:
     scan_timeout: float = 0.5
     compensate_latency: bool = True
     min_obstacle_width: float | None = None
+    kernels: str = "auto"
 
     def __post_init__(self) -> None:
         name = "MPCConfig."
@@ -209,6 +213,7 @@ class MPCConfig:
             _checks.pair(name + "weights", self.weights, low=0.0, low_open=True)
         _checks.number(name + "tracking", self.tracking, low=0.0, high=1e3)
         _checks.choice("MPC reference", self.reference, REFERENCES)
+        _checks.choice("MPC kernels", self.kernels, KERNELS)
         _checks.number(name + "slack_weight", self.slack_weight, low=1.0, high=1e9)
         _checks.integer(name + "max_iter", self.max_iter, low=1, high=10000)
         _checks.integer(name + "max_rounds", self.max_rounds, low=1, high=100)

@@ -18,6 +18,7 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig
+from safenav.filters import heap, kernels
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
@@ -293,6 +294,10 @@ class MPCSafetyFilter(SafetyFilter):
         self.cost = PlanCost(self.weights, float(cfg.tracking), buffer_weight, float(cfg.slack_weight))
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
+        self._kernels = kernels.load() if kernels.resolve(cfg.kernels) == "numba" else None
+        if isinstance(self.backend, DirectSQP):
+            self.backend.kernels = self._kernels
+        heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
         self._commands: np.ndarray | None = None
         # Whether the last solved answer needed more than SPLIT_SLACK: the next call solves with a slack per point
         # at once (the wall it could not keep clear is still there).
@@ -304,7 +309,8 @@ class MPCSafetyFilter(SafetyFilter):
                 robot, dt, margin=self.margin, body="disk" if cfg.body == "disk" else "cover", n_disks=cfg.n_disks,
                 time_constant=cfg.time_constant, max_gap=cfg.max_gap, side_tolerance=cfg.side_tolerance,
                 scan_timeout=cfg.scan_timeout, compensate_latency=cfg.compensate_latency,
-                memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time)
+                memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time,
+                kernels=cfg.kernels)
         self._referenced: FilterResult | None = None    # the reference's answer of this call
         self._call_start: float | None = None
         #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock

@@ -46,10 +46,11 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
+from safenav.filters.kernels import plain
 from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
 from safenav.filters.qp import QPBackend, QPData
@@ -204,6 +205,9 @@ class DirectSQP:
         self.name = f"sqp+{backend.name}"
         self._centred = not np.any(self.offsets)
         self._layouts: dict[tuple[int, int, int], _LayoutData] = {}
+        #: The compiled kernels (:func:`safenav.filters.kernels.load`) of the clearance rows' values, QP rows and
+        #: check, or ``None``: numpy (the reference; the same rows to rounding).
+        self.kernels: Any = None
 
     def prepare(self, layout: PlanLayout) -> _LayoutData:
         """The cost's Hessian, the knot differences and the model of a layout, computed once (the
@@ -301,6 +305,10 @@ class DirectSQP:
         gradient[2 * n + 1:] = self.cost.slack_weight
         # Each point's slack column.
         slack_column = 2 * n + 1 + (groups if n_groups > 1 else np.zeros(nlp.points.shape[0], dtype=np.intp))
+        compiled = self.kernels
+        if compiled is not None:
+            slack_column = slack_column.astype(np.intp, copy=False)
+            point_array = plain(nlp.points)
         # Rows are kept as (point, knot-and-disk) arrays, column k D + d for disk d at knot k, and
         # picked by their flat index (point K D + column).
         n_knots = self.model.n_poses
@@ -331,21 +339,27 @@ class DirectSQP:
                 poses, jacobian = data.model.evaluate(knots, nlp.velocity)
             centres, centre_jacobian = self._centres(poses, jacobian.reshape(n_knots, 3, 2 * n))
             # Rows are (||c - o||^2 - r^2) / (2 r); their gradients (c - o) / r times the centre's Jacobian.
-            dx, dy = centres[0] - point_x, centres[1] - point_y                         # (M, K D)
-            values = dx * dx
-            values += dy * dy
-            values *= inverse_radii
-            values -= radii
-            values *= 0.5
-            flat_values = values.ravel()
             # Per knot and disk the nearest point when it is within ROW_WINDOW, and the rows active at
             # the previous answer, go to the QP at once; any other row near enough to bind is added
             # when the answer violates it.
-            working = row_state != 0
-            if values.shape[0]:
-                nearest = np.argmin(values, axis=0) * n_columns + columns
-                working[nearest[flat_values[nearest] <= ROW_WINDOW]] = True
-            candidates = flat_values <= CHECK_WINDOW
+            if compiled is not None:
+                centre_jacobian = plain(centre_jacobian)
+                dx, dy, values, working, candidates = compiled.sqp_values(
+                    plain(centres), point_array, inverse_radii, radii, row_state, ROW_WINDOW, CHECK_WINDOW)
+                flat_values = values.ravel()
+            else:
+                dx, dy = centres[0] - point_x, centres[1] - point_y                         # (M, K D)
+                values = dx * dx
+                values += dy * dy
+                values *= inverse_radii
+                values -= radii
+                values *= 0.5
+                flat_values = values.ravel()
+                working = row_state != 0
+                if values.shape[0]:
+                    nearest = np.argmin(values, axis=0) * n_columns + columns
+                    working[nearest[flat_values[nearest] <= ROW_WINDOW]] = True
+                candidates = flat_values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
                 if round_index > 0 and clock() > deadline:
@@ -353,25 +367,30 @@ class DirectSQP:
                 if round_index == MAX_ROW_ROUNDS:
                     working |= candidates
                 rows = np.flatnonzero(working)
-                column = rows % n_columns
-                scale = inverse_radii.ravel()[rows, None]
                 row_relief = relief.ravel()[rows]
                 row_values = flat_values[rows]
                 # The rows as the QP writes them, -gradient . x <= value - gradient . knots.
                 matrix = np.empty((n_linear + rows.size, n_vars))
                 matrix[:n_linear] = linear
                 clearance = matrix[n_linear:, :2 * n]
-                np.multiply(centre_jacobian[0, column], dx.ravel()[rows, None] * -scale, out=clearance)
-                clearance -= centre_jacobian[1, column] * (dy.ravel()[rows, None] * scale)
-                matrix[n_linear:, 2 * n] = -row_relief
-                if n_groups > 1:
-                    matrix[n_linear:, 2 * n + 1:] = 0.0
-                    matrix[n_linear + np.arange(rows.size), slack_column[rows // n_columns]] = -1.0
+                if compiled is not None:
+                    row_upper = compiled.sqp_clearance_rows(rows, n_columns, centre_jacobian, dx, dy, inverse_radii,
+                                                            relief, values, knots, matrix, n_linear, 2 * n,
+                                                            slack_column)
                 else:
-                    matrix[n_linear:, 2 * n + 1] = -1.0
+                    column = rows % n_columns
+                    scale = inverse_radii.ravel()[rows, None]
+                    np.multiply(centre_jacobian[0, column], dx.ravel()[rows, None] * -scale, out=clearance)
+                    clearance -= centre_jacobian[1, column] * (dy.ravel()[rows, None] * scale)
+                    matrix[n_linear:, 2 * n] = -row_relief
+                    if n_groups > 1:
+                        matrix[n_linear:, 2 * n + 1:] = 0.0
+                        matrix[n_linear + np.arange(rows.size), slack_column[rows // n_columns]] = -1.0
+                    else:
+                        matrix[n_linear:, 2 * n + 1] = -1.0
+                    row_upper = row_values + np.einsum("rj,j->r", clearance, knots)
                 guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[rows]))
-                qp = QPData(hessian, gradient, matrix,
-                            np.concatenate((linear_high, row_values + np.einsum("rj,j->r", clearance, knots))),
+                qp = QPData(hessian, gradient, matrix, np.concatenate((linear_high, row_upper)),
                             lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))),
                             guess)
                 outcome = self.qp.solve(qp)
@@ -381,7 +400,6 @@ class DirectSQP:
                                       clock() - start_time)
                 # Every row linearised at the answer, through the centres' displacement.
                 move = answer[:2 * n] - knots
-                moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
                 slacks = answer[slack_column]                                           # (M,): each point's
                 row_state = np.zeros(radii.size, dtype=np.int8)
                 if outcome.active is not None:
@@ -391,13 +409,18 @@ class DirectSQP:
                     row_state[rows] = (row_values - np.einsum("rj,j->r", clearance, move)
                                        + row_relief * answer[2 * n] + slacks[rows // n_columns]
                                        ) < ACTIVE_TOLERANCE
-                linearised = dx * moved_x
-                linearised += dy * moved_y
-                linearised *= inverse_radii
-                linearised += values
-                linearised += relief * answer[2 * n] + slacks[:, None]
-                violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
-                violated &= ~working
+                if compiled is not None:
+                    violated = compiled.sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief,
+                                                     float(answer[2 * n]), slacks, candidates, working, ROW_TOLERANCE)
+                else:
+                    moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
+                    linearised = dx * moved_x
+                    linearised += dy * moved_y
+                    linearised *= inverse_radii
+                    linearised += values
+                    linearised += relief * answer[2 * n] + slacks[:, None]
+                    violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
+                    violated &= ~working
                 if not violated.any():
                     break
                 working |= violated
