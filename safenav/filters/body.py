@@ -63,9 +63,24 @@ def polygon_distance(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def inside_polygon(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Mask of ``points`` ``(N, 2)`` inside ``polygon`` ``(V, 2)`` (any simple polygon; even-odd rule) [m]."""
+    """Mask of ``points`` ``(N, 2)`` inside ``polygon`` ``(V, 2)`` (any simple polygon; even-odd rule) [m].
+
+    Only the points in the polygon's bounding box are tested edge by edge: a point outside it crosses no edge
+    (above, below or to the right) or every edge its row straddles, an even number (to the left).
+    """
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     a = np.asarray(polygon, dtype=float)
+    low, high = a.min(axis=0), a.max(axis=0)
+    boxed = np.flatnonzero((points[:, 0] >= low[0]) & (points[:, 0] <= high[0]) & (points[:, 1] >= low[1])
+                           & (points[:, 1] <= high[1]))
+    inside = np.zeros(points.shape[0], dtype=bool)
+    if boxed.size:
+        inside[boxed] = _even_odd(a, points[boxed])
+    return inside
+
+
+def _even_odd(a: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Even-odd rule of ``points`` ``(N, 2)`` against the polygon ``a`` ``(V, 2)``, every edge for every point."""
     b = np.roll(a, -1, axis=0)
     x, y = points[:, None, 0], points[:, None, 1]
     straddles = (a[None, :, 1] > y) != (b[None, :, 1] > y)

@@ -376,7 +376,7 @@ class CBFSafetyFilter(SafetyFilter):
         self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
         # The compiled obstacle rows (disk and cover bodies), compiled here rather than in a control call.
-        self._kernels = kernels.load() if kernels.resolve(cfg.kernels) == "numba" else None
+        self._kernels = kernels.select(cfg.kernels)
         heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:

@@ -22,19 +22,22 @@ The kernels are compiled on first use (a few seconds, cached on disk by numba af
 from __future__ import annotations
 
 import threading
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
 
 from safenav._optional import require
+from safenav.errors import SafeNavWarning
 
-__all__ = ["KERNELS", "available", "frozen", "load", "plain", "resolve"]
+__all__ = ["KERNELS", "available", "frozen", "load", "plain", "resolve", "select"]
 
 KERNELS = ("auto", "numba", "numpy")
 """Values of ``CBFConfig.kernels``."""
 
 _lock = threading.Lock()
 _compiled: SimpleNamespace | None = None
+_failure: str | None = None     # why compiling failed in this process (``"auto"`` then keeps to numpy)
 
 
 def available() -> bool:
@@ -55,8 +58,31 @@ def resolve(name: str) -> str:
     return name
 
 
+def select(name: str) -> SimpleNamespace | None:
+    """The kernels a filter configured with ``kernels=name`` uses: the compiled ones, or ``None`` for numpy.
+
+    ``"auto"`` takes numba's when numba is installed and they compile; when they do not (an unsupported
+    CPU, a broken LLVM), it warns once with the reason and keeps to numpy, which gives the same rows.
+    ``"numba"`` raises instead (:class:`~safenav.errors.MissingDependency` without numba).
+    """
+    global _failure
+    if resolve(name) == "numpy":
+        return None
+    if name == "auto" and _failure is not None:
+        return None
+    try:
+        return load()
+    except Exception as error:   # numba's compile errors have no common base; "auto" must still give a filter
+        if name != "auto":
+            raise
+        _failure = f"{type(error).__name__}: {error}"
+        warnings.warn(f"safenav's compiled kernels did not compile ({_failure}); the filters use numpy (the same "
+                      f"rows, slower)", SafeNavWarning, stacklevel=3)
+        return None
+
+
 def load() -> SimpleNamespace:
-    """The compiled kernels (``pair_minima``, ``obstacle_rows``), compiled and warmed on the first call."""
+    """The compiled kernels (``pair_minima``, ``obstacle_rows``, ...), compiled and warmed on the first call."""
     global _compiled
     with _lock:
         if _compiled is None:

@@ -23,7 +23,7 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig
-from safenav.filters import heap
+from safenav.filters import heap, kernels
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
 from safenav.filters.body import inside_polygon
 from safenav.geometry import counter_clockwise
@@ -74,6 +74,8 @@ class ZonesConfig:
             body the other filters and the simulator's truth use, so it is the default).
         deadlock_time: how long the commands may stall while the nominal asks to move before the
             result reports a deadlock [s].
+        kernels: ``"auto"``, ``"numba"`` or ``"numpy"``: the compiled edges of what obstacles hide, as
+            :attr:`CBFConfig.kernels <safenav.filters.CBFConfig>`.
     """
 
     stop_distance: float = 0.05
@@ -83,6 +85,7 @@ class ZonesConfig:
     scan_timeout: float = 0.5
     use_footprint: bool = False
     deadlock_time: float = 1.5
+    kernels: str = "auto"
 
     def __post_init__(self) -> None:
         name = "ZonesConfig."
@@ -96,6 +99,7 @@ class ZonesConfig:
         _checks.integer(name + "min_points", self.min_points, low=1)
         _checks.boolean(name + "use_footprint", self.use_footprint)
         _checks.positive(name + "deadlock_time", self.deadlock_time)
+        _checks.choice("zones kernels", self.kernels, kernels.KERNELS)
 
 
 class ZonesFilter(SafetyFilter):
@@ -125,6 +129,7 @@ class ZonesFilter(SafetyFilter):
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
         self.slowdown_polygon = inflate_footprint(robot, config.slowdown_distance, disk=disk)
+        self._kernels = kernels.select(config.kernels)
         heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:

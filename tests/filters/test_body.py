@@ -123,3 +123,19 @@ def test_the_corridor_a_body_drives_along_is_its_own_width_and_the_escape_looks_
         assert safety.body.half_width == pytest.approx(half_width, abs=1e-3)
         assert safety.corridor_half_width == pytest.approx(half_width + safety.margin, abs=1e-3)
         assert Escape(safety).clear_half_width == safety.corridor_half_width
+
+
+def test_inside_polygon_is_the_even_odd_rule_of_every_edge_with_or_without_the_bounding_box():
+    """The bounding-box shortcut changes no answer: random points (many outside the box, some on its edges and
+    on vertices) against a convex footprint, an inflated disk and a concave polygon."""
+    from safenav.filters import body
+
+    rng = np.random.default_rng(11)
+    concave = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [1.0, 0.5], [0.0, 2.0]])
+    for polygon in (np.asarray(preset("rosbot").footprint, dtype=float), concave,
+                    np.column_stack((np.cos(np.linspace(0, 6.2, 40)), np.sin(np.linspace(0, 6.2, 40))))):
+        points = np.vstack((rng.uniform(-3.0, 3.0, (2000, 2)), polygon, polygon * 0.999, polygon * 1.001,
+                            [[polygon[:, 0].min(), 0.3], [polygon[:, 0].max(), 0.1]]))
+        full = body._even_odd(polygon, points)
+        assert full.any() and not full.all()
+        np.testing.assert_array_equal(inside_polygon(polygon, points), full)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from safenav import Pose2D, preset, unicycle_step
-from safenav.errors import MissingDependency, SafeNavError, UnknownName
+from safenav.errors import MissingDependency, SafeNavError, SafeNavWarning, UnknownName
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, kernels
 from safenav.filters.base import View
 from safenav.filters.perception import Frontier, shadow_points
@@ -218,3 +219,24 @@ def test_the_compiled_sqp_plans_every_recorded_problem_as_numpy_does():
             worst = max(worst, float(np.max(np.abs(compiled.commands - reference.commands))))
     assert solved >= 490
     assert worst <= 1e-9, worst
+
+
+def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monkeypatch):
+    """A numba that is installed but cannot compile (an unsupported CPU, a broken LLVM): ``"auto"`` still gives a
+    filter, on numpy, and says why once; ``"numba"`` raises the compile error."""
+    def broken():
+        raise RuntimeError("LLVM ERROR: no target for this CPU")
+
+    monkeypatch.setattr(kernels, "_compiled", None)
+    monkeypatch.setattr(kernels, "_failure", None)
+    monkeypatch.setattr(kernels, "_build", broken)
+    with pytest.warns(SafeNavWarning, match="no target for this CPU"):
+        safety = CBFSafetyFilter(preset("rosbot"))
+    assert safety._kernels is None
+    scan = synthetic_scan(preset("rosbot"), Scene.of(Segment((0.5, -1.0), (0.5, 1.0))), Pose2D())
+    assert safety.filter((0.5, 0.0), scan, velocity=(0.5, 0.0)).u[0] < 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert MPCSafetyFilter(preset("rosbot"), 0.05)._kernels is None     # once: no second warning
+    with pytest.raises(RuntimeError, match="no target"):
+        CBFSafetyFilter(preset("rosbot"), kernels="numba")

@@ -294,7 +294,7 @@ class MPCSafetyFilter(SafetyFilter):
         self.cost = PlanCost(self.weights, float(cfg.tracking), buffer_weight, float(cfg.slack_weight))
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
-        self._kernels = kernels.load() if kernels.resolve(cfg.kernels) == "numba" else None
+        self._kernels = kernels.select(cfg.kernels)
         if isinstance(self.backend, DirectSQP):
             self.backend.kernels = self._kernels
         heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
