@@ -21,12 +21,14 @@ The kernels are compiled on first use (a few seconds, cached on disk by numba af
 
 from __future__ import annotations
 
+import os
 import threading
 import warnings
 from types import SimpleNamespace
 
 import numpy as np
 
+from safenav import _checks
 from safenav._optional import require
 from safenav.errors import SafeNavWarning
 
@@ -63,9 +65,13 @@ def select(name: str) -> SimpleNamespace | None:
 
     ``"auto"`` takes numba's when numba is installed and they compile; when they do not (an unsupported
     CPU, a broken LLVM), it warns once with the reason and keeps to numpy, which gives the same rows.
-    ``"numba"`` raises instead (:class:`~safenav.errors.MissingDependency` without numba).
+    ``"numba"`` raises instead (:class:`~safenav.errors.MissingDependency` without numba). The environment
+    variable ``SAFENAV_KERNELS`` (``numba`` or ``numpy``) decides for ``"auto"`` (a whole process, a ROS node,
+    a benchmark run, without changing any config).
     """
     global _failure
+    if name == "auto" and os.environ.get("SAFENAV_KERNELS", "auto") != "auto":
+        name = _checks.choice("SAFENAV_KERNELS", os.environ["SAFENAV_KERNELS"], KERNELS)
     if resolve(name) == "numpy":
         return None
     if name == "auto" and _failure is not None:

@@ -240,3 +240,14 @@ def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monk
         assert MPCSafetyFilter(preset("rosbot"), 0.05)._kernels is None     # once: no second warning
     with pytest.raises(RuntimeError, match="no target"):
         CBFSafetyFilter(preset("rosbot"), kernels="numba")
+
+
+def test_the_environment_decides_for_auto(monkeypatch):
+    monkeypatch.setenv("SAFENAV_KERNELS", "numpy")
+    assert CBFSafetyFilter(preset("rosbot"))._kernels is None
+    assert CBFSafetyFilter(preset("rosbot"), kernels="numba")._kernels is not None   # an explicit setting wins
+    monkeypatch.setenv("SAFENAV_KERNELS", "numba")
+    assert MPCSafetyFilter(preset("rosbot"), 0.05).backend.kernels is not None
+    monkeypatch.setenv("SAFENAV_KERNELS", "fortran")
+    with pytest.raises(UnknownName, match="fortran"):
+        CBFSafetyFilter(preset("rosbot"))
