@@ -1,6 +1,7 @@
 """The numba code of :mod:`safenav.filters.kernels` (imported only when numba is installed and asked for).
 
-Each function mirrors a numpy function of :mod:`safenav.filters.rows`, named in its comment.
+Each function mirrors numpy code named in its docstring (:mod:`safenav.filters.rows`, the perception's shadow
+edges, the MPC's direct SQP); ``tests/filters/test_kernels.py`` checks each against it.
 """
 
 from __future__ import annotations

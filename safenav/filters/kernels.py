@@ -1,22 +1,29 @@
 """Compiled kernels of the filters' per-call arithmetic: the same numbers as the numpy code they mirror.
 
-The row families (:mod:`~safenav.filters.rows`) are written with numpy over arrays of a few dozen
-point-disk pairs; each call then spends most of its time in numpy's per-operation overhead (about
-a hundred operations a call), not in arithmetic. With numba installed (``pip install
-"safenav[fast]"``) the disk and cover bodies' obstacle rows of a call are built by two compiled
-loops instead: :func:`pair_minima` (every point's smallest barrier, which sets how far the cut
-reaches) and :func:`obstacle_rows` (the kept pairs' tilted half-planes, then the barrier, braking
-and sweep rows and their ramp corners, in the order :mod:`~safenav.filters.rows` stacks them).
+The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
+numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
+installed (``pip install "safenav[fast]"``) three pieces run as compiled loops instead
+(:mod:`safenav.filters._compiled_rows`):
 
-The numpy families stay the reference: each line here mirrors a line there (named in the
-comments), and ``tests/filters/test_kernels.py`` checks that both give the same rows, to rounding,
-on random problems and on every call of recorded closed loops. The polygon body and the reference
-without the cut (``cut=False``, which the contract checker compares against) always use numpy.
+* the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
+  smallest barrier, which sets how far the cut reaches) and ``obstacle_rows`` (the kept pairs' tilted
+  half-planes, then the barrier, braking and sweep rows and their ramp corners, in the order
+  :mod:`~safenav.filters.rows` stacks them);
+* the edges of what obstacles hide (``shadow_beams``, :func:`~safenav.filters.perception.shadow_points`);
+* the MPC's direct SQP: the clearance rows' values at an iterate, the QP's rows and the check of each
+  answer (``sqp_values``, ``sqp_clearance_rows``, ``sqp_violated``, :class:`~safenav.filters.mpc.DirectSQP`).
 
-``CBFConfig.kernels`` picks the path: ``"auto"`` (numba when installed), ``"numba"`` (raises
-:class:`~safenav.errors.MissingDependency` with the pip line when absent) or ``"numpy"``.
-The kernels are compiled on first use (a few seconds, cached on disk by numba afterwards);
-:func:`load` compiles them when the filter is built, so no control call pays for it.
+The numpy code stays the reference: each kernel names the function it mirrors, and
+``tests/filters/test_kernels.py`` checks that both give the same rows to rounding on random problems, the
+same commands and plans in closed loop and on the recorded MPC problems. The polygon body, the cut's
+reference (``cut=False``, which the contract checker compares against) and the MPC's verification of its
+plans always use numpy.
+
+``kernels`` in the filters' configs picks the path (:func:`select`): ``"auto"`` (numba when installed and
+it compiles; ``SAFENAV_KERNELS=numpy`` or ``numba`` decides for a whole process), ``"numba"`` (raises
+:class:`~safenav.errors.MissingDependency` with the pip line when absent) or ``"numpy"``. The kernels are
+compiled for the exact argument types the filters pass when the first filter is built (about 5 s, then
+about 1 s from numba's cache on disk), so no control call compiles.
 """
 
 from __future__ import annotations
@@ -35,7 +42,8 @@ from safenav.errors import SafeNavWarning
 __all__ = ["KERNELS", "available", "frozen", "load", "plain", "resolve", "select"]
 
 KERNELS = ("auto", "numba", "numpy")
-"""Values of ``CBFConfig.kernels``."""
+"""Values of ``kernels`` in :class:`~safenav.filters.CBFConfig`, :class:`~safenav.filters.MPCConfig` and
+:class:`~safenav.filters.ZonesConfig`."""
 
 _lock = threading.Lock()
 _compiled: SimpleNamespace | None = None
@@ -56,7 +64,7 @@ def resolve(name: str) -> str:
     if name == "auto":
         return "numba" if available() else "numpy"
     if name == "numba":
-        require("numba", extra="fast", purpose="the compiled CBF rows (CBFConfig.kernels='numba')")
+        require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
     return name
 
 
@@ -113,7 +121,7 @@ def frozen(array: np.ndarray) -> np.ndarray:
 
 
 def _build() -> SimpleNamespace:
-    require("numba", extra="fast", purpose="the compiled CBF rows (CBFConfig.kernels='numba')")
+    require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
     from safenav.filters import _compiled_rows
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
@@ -123,7 +131,8 @@ def _build() -> SimpleNamespace:
 
 
 def _warm(kernels: SimpleNamespace) -> None:
-    """Compile both kernels for the argument types the filter passes (float64 arrays, float scalars)."""
+    """Compile every kernel for the argument types the filters pass (plain float64 arrays, read-only scan arrays,
+    float scalars): one specialisation each."""
     points, uncertainty = np.array([[0.5, 0.1], [0.6, -0.2]]), np.zeros(2)
     control, offsets = np.array([[0.1, 0.0]]), np.array([0.3])
     per_point = kernels.pair_minima(points, uncertainty, control, offsets)

@@ -251,3 +251,27 @@ def test_the_environment_decides_for_auto(monkeypatch):
     monkeypatch.setenv("SAFENAV_KERNELS", "fortran")
     with pytest.raises(UnknownName, match="fortran"):
         CBFSafetyFilter(preset("rosbot"))
+
+
+def test_no_call_compiles_a_kernel_again():
+    """Every kernel was compiled, when the first filter was built, for the argument types the filters pass: after
+    calls of every filter (both bodies, with and without the velocity, scans of known age, the MPC solving), each
+    kernel still has exactly one compiled specialisation (a second would be a compile of seconds in a call)."""
+    from safenav.filters import ZonesFilter
+
+    robot = preset("m2wr")
+    side = robot.radius + 0.05
+    scene = Scene.of(Segment((0.16, side), (4.0, side)), Segment((1.0, -1.0), (1.0, -0.3)))
+    filters = [CBFSafetyFilter(robot, 0.05), CBFSafetyFilter(robot, 0.05, body="cover"),
+               MPCSafetyFilter(robot, 0.05), MPCSafetyFilter(robot, 0.05, reference="cbf"), ZonesFilter(robot, 0.05)]
+    rng = np.random.default_rng(2)
+    for safety in filters:
+        pose, velocity = Pose2D(), np.zeros(2)
+        for step in range(30):
+            scan = synthetic_scan(robot, scene, pose, noise_std=0.005, rng=rng)
+            result = safety.filter((robot.v_max, robot.omega_max), scan,
+                                   velocity=None if step % 3 == 0 else velocity, scan_age=0.05 if step % 2 else None)
+            velocity = robot.clip(result.u, velocity, 0.05)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), 0.05)
+    for name, dispatcher in vars(kernels.load()).items():
+        assert len(dispatcher.signatures) == 1, (name, dispatcher.signatures)
