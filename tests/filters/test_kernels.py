@@ -275,3 +275,25 @@ def test_no_call_compiles_a_kernel_again():
             pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), 0.05)
     for name, dispatcher in vars(kernels.load()).items():
         assert len(dispatcher.signatures) == 1, (name, dispatcher.signatures)
+
+
+@pytest.mark.parametrize("velocity", [None, (0.4, 0.0)])
+def test_a_point_just_shallower_than_the_deepest_inside_the_margin_keeps_its_own_direction(velocity):
+    """The tilt's boundary: with the deepest point inside the margin (H < 0), a second point whose barrier lies
+    between H and (1 - gamma) H is within ``K = reach + (1 - gamma) H`` of its control point and keeps its own
+    direction; just beyond that band it is tilted. Both kernels agree on either side of the boundary."""
+    robot = preset("rosbot")
+    compiled = CBFSafetyFilter(robot, 0.05, kernels="numba")
+    reference = CBFSafetyFilter(robot, 0.05, kernels="numpy")
+    offset = robot.radius + compiled.lookahead + compiled.margin
+    control = np.array([compiled.lookahead, 0.0])
+    deepest = -0.02
+    for shallower in (deepest * (1.0 - 0.5 * compiled.gamma), deepest * (1.0 - 2.0 * compiled.gamma), 0.01):
+        bearing = np.radians(70.0)
+        points = np.array([control + (offset + deepest) * np.array([1.0, 0.0]),
+                           control + (offset + shallower) * np.array([math.cos(bearing), math.sin(bearing)])])
+        view = view_of(points, np.zeros(2))
+        u = None if velocity is None else np.array(velocity)
+        a = compiled._constraints(view, u, 0.05)
+        b = reference._constraints(view, u, 0.05)
+        np.testing.assert_allclose(sorted_rows(a.rows), sorted_rows(b.rows), rtol=1e-12, atol=1e-12)
