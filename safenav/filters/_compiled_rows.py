@@ -44,6 +44,12 @@ def term_signs(k, low, high):
     return k == 0.0, k == 0.0
 
 @_jit
+def row_block(count):
+    """Room for ``count`` rows ``(G, h, point, family)``, as :class:`~safenav.filters.rows.Rows` holds them."""
+    return np.empty((count, 4)), np.empty(count), np.empty(count, dtype=np.intp), np.empty(count, dtype=np.intp)
+
+
+@_jit
 def pair_minima(points, uncertainty, control, offsets):
     """rows.geometry's ``per_point``: every point's smallest barrier over the disks [m]."""
     count, disks = points.shape[0], control.shape[0]
@@ -126,12 +132,8 @@ def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor
             arc[kept, 0] = kappa
             arc[kept, 1] = kappa * reach_of[d]
             kept += 1
-    # at most: a barrier row, three braking rows and two sweep rows per pair, each in four corners
-    capacity = 6 * kept
-    G = np.zeros((capacity, 4))
-    h = np.empty(capacity)
-    point = np.empty(capacity, dtype=np.intp)
-    family = np.empty(capacity, dtype=np.intp)
+    # at most: a barrier row, three braking rows and two sweep rows per pair (every entry of a row is written)
+    G, h, point, family = row_block(6 * kept)
     # rows.barrier_rows (family 0)
     for k in range(kept):
         value = barrier[k]
@@ -229,11 +231,7 @@ def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor
         if worst + spread > h[r]:
             bind[binding] = r
             binding += 1
-    out = 4 * binding
-    G_out = np.empty((out, 4))
-    h_out = np.empty(out)
-    point_out = np.empty(out, dtype=np.intp)
-    family_out = np.empty(out, dtype=np.intp)
+    G_out, h_out, point_out, family_out = row_block(4 * binding)
     written = 0
     for corner in range(4):
         b_v = lag if corner == 1 or corner == 3 else 0.0

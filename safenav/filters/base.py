@@ -35,6 +35,7 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
+from safenav.filters import heap, kernels
 from safenav.filters.body import BodyModel, inscribed_radius
 from safenav.filters.perception import (
     SEEN_FREE_MAX_TRAVEL,
@@ -394,7 +395,7 @@ class SafetyFilter(abc.ABC):
     name = "filter"
     margin: float = 0.0
     _kernels: Any = None
-    """The compiled kernels (:func:`safenav.filters.kernels.load`) the subclass's config picks; ``None``: numpy."""
+    """The compiled kernels (:func:`safenav.filters.kernels.select`) the subclass's config picks; ``None``: numpy."""
 
     def __init__(self, robot: RobotSpec, dt: float, *, body: BodyModel | None = None,
                  other_bodies: Sequence[BodyModel] = (), scan_timeout: float = 0.5,
@@ -809,6 +810,13 @@ class SafetyFilter(abc.ABC):
             extras.update(status=FilterStatus.LATE, reason=late_reason if result.reason is None else result.reason,
                           message=str(late_reason) + (f"; {result.message}" if result.message else ""))
         return _replace(result, **extras)
+
+    def _ready(self, kernels_name: str) -> None:
+        """The end of a filter's construction: its kernels (``kernels`` of its config, compiled now rather than in a
+        control call) and, for the first filter of a process, the heap frozen (:func:`safenav.filters.heap.settle`:
+        no full garbage collection then scans what is alive now)."""
+        self._kernels = kernels.select(kernels_name)
+        heap.settle()
 
     def _period_since(self, elapsed: float | None, velocity: np.ndarray | None) -> Period:
         """The period since the previous call: its length [s] (``dt`` when the time is not given), the command

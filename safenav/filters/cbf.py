@@ -16,7 +16,7 @@ import numpy as np
 import qpsolvers
 
 from safenav import _checks
-from safenav.filters import heap, kernels
+from safenav.filters import kernels
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
@@ -375,9 +375,7 @@ class CBFSafetyFilter(SafetyFilter):
             self._shapes["narrow"] = self._shape_of(narrow, 0.0)
         self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
-        # The compiled obstacle rows (disk and cover bodies), compiled here rather than in a control call.
-        self._kernels = kernels.select(cfg.kernels)
-        heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
+        self._ready(cfg.kernels)
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
         """``body`` with its control points ``lookahead`` ahead [m], the farthest of them from the base origin

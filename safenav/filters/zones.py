@@ -23,7 +23,7 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig
-from safenav.filters import heap, kernels
+from safenav.filters import kernels
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
 from safenav.filters.body import inside_polygon
 from safenav.geometry import counter_clockwise
@@ -129,8 +129,7 @@ class ZonesFilter(SafetyFilter):
         disk = not config.use_footprint
         self.stop_polygon = inflate_footprint(robot, config.stop_distance, disk=disk)
         self.slowdown_polygon = inflate_footprint(robot, config.slowdown_distance, disk=disk)
-        self._kernels = kernels.select(config.kernels)
-        heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
+        self._ready(config.kernels)
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         points = view.points[: view.n_current]   # like the collision monitor: the current scans only

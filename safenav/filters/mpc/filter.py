@@ -18,7 +18,6 @@ import numpy as np
 
 from safenav import _checks
 from safenav.errors import InvalidConfig
-from safenav.filters import heap, kernels
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
@@ -294,10 +293,9 @@ class MPCSafetyFilter(SafetyFilter):
         self.cost = PlanCost(self.weights, float(cfg.tracking), buffer_weight, float(cfg.slack_weight))
         self.n_points = cfg.n_points
         self.backend: PlanSolver = self._make_solver()
-        self._kernels = kernels.select(cfg.kernels)
+        self._ready(cfg.kernels)
         if isinstance(self.backend, DirectSQP):
             self.backend.kernels = self._kernels
-        heap.settle()    # the first filter of a process: no full garbage collection scans what is alive now
         self._commands: np.ndarray | None = None
         # Whether the last solved answer needed more than SPLIT_SLACK: the next call solves with a slack per point
         # at once (the wall it could not keep clear is still there).
