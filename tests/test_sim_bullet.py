@@ -1,5 +1,6 @@
 """The PyBullet simulator: lidar truth, exact clearance, the base models' kinematics, noise streams, errors."""
 
+import itertools
 import math
 import subprocess
 import sys
@@ -379,6 +380,66 @@ def test_scan_latency_delivers_old_scans_with_their_acquisition_stamp():
     for k in range(2, 6):
         np.testing.assert_array_equal(delayed[k].scan.ranges, fresh[k - 2].scan.ranges)
         assert delayed[k].pose == fresh[k].pose   # only the scan is late
+
+
+def _counting_casts(monkeypatch) -> list[int]:
+    """Count PyBullet's ray batches from now on (the simulator looks the function up at each cast)."""
+    import pybullet
+
+    calls = [0]
+    real = pybullet.rayTestBatch
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "rayTestBatch", counted)
+    return calls
+
+
+def _drive_then_rest(sim: BulletSim, forget: bool) -> list:
+    """Drive 0.3 m/s towards the wall, command a stop and wait at rest; with ``forget`` the simulator
+    keeps no last cast (every period casts afresh). A scan from elsewhere is taken half way through."""
+    states = [sim.reset()]
+    for k in range(40):
+        if forget:
+            sim._last_cast = (None, sim._last_cast[1])
+        if k == 30:
+            sim.scan(Pose2D(0.5, 0.2, 1.0))        # moves the body for its cast; the next period is back
+        states.append(sim.step((0.3, 0.0) if k < 8 else (0.0, 0.0)))
+    return states
+
+
+def test_a_base_at_rest_reuses_its_last_rays_and_clearance_and_reads_as_a_fresh_cast(monkeypatch):
+    robot = preset("rosbot")
+    world = tutorial_world("stop_at_wall")
+    config = SimConfig(range_noise=0.01, dropout=0.05)
+    calls = _counting_casts(monkeypatch)
+    with BulletSim(world, robot, config, seed=3) as sim:
+        reusing = _drive_then_rest(sim, forget=False)
+    reused_casts, calls[0] = calls[0], 0
+    with BulletSim(world, robot, config, seed=3) as sim:
+        fresh = _drive_then_rest(sim, forget=True)
+    assert calls[0] == 42                              # reset, 40 periods, the scan from elsewhere
+    moved = sum(after.pose != before.pose for before, after in itertools.pairwise(reusing))
+    assert 8 <= moved < 20 and reusing[-1].velocity.tolist() == [0.0, 0.0]
+    assert reused_casts == 1 + moved + 2               # the stray scan, and the period after it
+    for a, b in zip(reusing, fresh, strict=True):       # the same scans, noise and dropout drawn alike
+        assert a.pose == b.pose and a.clearance == b.clearance and a.min_clearance == b.min_clearance
+        np.testing.assert_array_equal(a.scan.ranges, b.scan.ranges)
+
+
+def test_among_moving_obstacles_a_base_at_rest_casts_every_period(monkeypatch):
+    from safenav.worlds.dynamic import DynamicWorld, head_on
+
+    walker = head_on(Pose2D(), distance=3.0, speed=1.0, radius=0.2)
+    calls = _counting_casts(monkeypatch)
+    with BulletSim(DynamicWorld("head-on", (), movers=(walker,)), preset("puzzlebot"), EXACT, seed=0) as sim:
+        states = [sim.reset()] + [sim.step((0.0, 0.0)) for _ in range(20)]
+    assert calls[0] == 21
+    front = [float(np.nanmin(np.abs(state.scan.ranges))) for state in states]
+    assert all(later < earlier for earlier, later in itertools.pairwise(front))   # the walker comes closer
+    assert states[-1].clearance < states[0].clearance - 0.9
 
 
 def test_actuation_noise_is_relative_and_seeded():
