@@ -385,3 +385,75 @@ def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, b
             linearised += relief[i, c] * buffer_slack + slacks[i]
             violated[flat] = linearised < -tolerance
     return violated
+
+
+@_jit
+def plan_check(commands, velocity, rho, beta, dt, coast, offsets, points, guaranteed, radii, lower, upper, steps):
+    """MPCSafetyFilter.check_plan: the rollout (plan.BaseModel.knot_poses, geometry.unicycle_rollout), the disk
+    centres at the knots (plan.disk_centres), the smallest knot distance per point and disk (plan.distances) and
+    the limits' violation; ``coast`` is the lag's time constant (0: no drift knot).
+
+    Returns ``(limits, clearance, planned, distances (M, D), poses (P + 1, 3), velocities (P + 1, 2))``.
+    """
+    periods = commands.shape[0]
+    limits = -np.inf
+    for k in range(periods):
+        for axis in range(2):
+            limits = max(limits, lower[k, axis] - commands[k, axis], commands[k, axis] - upper[k, axis])
+    for k in range(periods - 1):
+        for axis in range(2):
+            limits = max(limits, abs(commands[k + 1, axis] - commands[k, axis]) - steps[k, axis])
+    velocities = np.empty((periods + 1, 2))
+    velocities[0, 0], velocities[0, 1] = velocity[0], velocity[1]
+    poses = np.zeros((periods + 1, 3))
+    for k in range(periods):
+        for axis in range(2):
+            if rho == 0.0:
+                velocities[k + 1, axis] = commands[k, axis]
+            else:   # lfilter([1 - rho], [1, -rho]): y = b0 x + z, z = rho y
+                velocities[k + 1, axis] = (1.0 - rho) * commands[k, axis] + rho * velocities[k, axis]
+        mean_v = commands[k, 0] + beta * (velocities[k, 0] - commands[k, 0])
+        mean_omega = commands[k, 1] + beta * (velocities[k, 1] - commands[k, 1])
+        turn = mean_omega * dt
+        chord = mean_v * dt * np.sinc(0.5 * turn / math.pi)
+        heading = poses[k, 2] + 0.5 * turn
+        poses[k + 1, 0] = poses[k, 0] + chord * math.cos(heading)
+        poses[k + 1, 1] = poses[k, 1] + chord * math.sin(heading)
+        poses[k + 1, 2] = poses[k, 2] + turn
+    n_knots = periods + 1 if coast > 0.0 else periods
+    knots = np.empty((n_knots, 3))
+    knots[:periods] = poses[1:]
+    if coast > 0.0:
+        drift = coast * velocities[periods, 0]
+        knots[periods, 0] = poses[periods, 0] + drift * math.cos(poses[periods, 2])
+        knots[periods, 1] = poses[periods, 1] + drift * math.sin(poses[periods, 2])
+        knots[periods, 2] = poses[periods, 2]
+    disks = offsets.shape[0]
+    centred = True
+    for d in range(disks):
+        if offsets[d, 0] != 0.0 or offsets[d, 1] != 0.0:
+            centred = False
+    centres = np.empty((n_knots, disks, 2))
+    for k in range(n_knots):
+        cos, sin = math.cos(knots[k, 2]), math.sin(knots[k, 2])
+        for d in range(disks):
+            if centred:
+                centres[k, d, 0], centres[k, d, 1] = knots[k, 0], knots[k, 1]
+            else:
+                centres[k, d, 0] = knots[k, 0] + cos * offsets[d, 0] - sin * offsets[d, 1]
+                centres[k, d, 1] = knots[k, 1] + sin * offsets[d, 0] + cos * offsets[d, 1]
+    count = points.shape[0]
+    gaps = np.empty((count, disks))
+    clearance = planned = np.inf
+    for i in range(count):
+        for d in range(disks):
+            best = np.inf
+            for k in range(n_knots):
+                dx = centres[k, d, 0] - points[i, 0]
+                dy = centres[k, d, 1] - points[i, 1]
+                best = min(best, dx * dx + dy * dy)
+            gap = math.sqrt(best)
+            gaps[i, d] = gap
+            clearance = min(clearance, gap - guaranteed[i, d])
+            planned = min(planned, gap - radii[i, d])
+    return limits, clearance, planned, gaps, poses, velocities

@@ -2,7 +2,7 @@
 
 The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
 numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
-installed (``pip install "safenav[fast]"``) three pieces run as compiled loops instead
+installed (``pip install "safenav[fast]"``) four pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
 * the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
@@ -11,13 +11,14 @@ installed (``pip install "safenav[fast]"``) three pieces run as compiled loops i
   :mod:`~safenav.filters.rows` stacks them);
 * the edges of what obstacles hide (``shadow_beams``, :func:`~safenav.filters.perception.shadow_points`);
 * the MPC's direct SQP: the clearance rows' values at an iterate, the QP's rows and the check of each
-  answer (``sqp_values``, ``sqp_clearance_rows``, ``sqp_violated``, :class:`~safenav.filters.mpc.DirectSQP`).
+  answer (``sqp_values``, ``sqp_clearance_rows``, ``sqp_violated``, :class:`~safenav.filters.mpc.DirectSQP`);
+* the MPC's verification of a plan (``plan_check``, :meth:`~safenav.filters.MPCSafetyFilter.check_plan`): the
+  rollout, every body disk at every knot against every point, the bounds and the acceleration rows.
 
 The numpy code stays the reference: each kernel names the function it mirrors, and
 ``tests/filters/test_kernels.py`` checks that both give the same rows to rounding on random problems, the
-same commands and plans in closed loop and on the recorded MPC problems. The polygon body, the cut's
-reference (``cut=False``, which the contract checker compares against) and the MPC's verification of its
-plans always use numpy.
+same commands and plans in closed loop and on the recorded MPC problems, the same plan checks on random plans. The
+polygon body and the cut's reference (``cut=False``, which the contract checker compares against) always use numpy.
 
 ``kernels`` in the filters' configs picks the path (:func:`select`): ``"auto"`` (numba when installed and
 it compiles; ``SAFENAV_KERNELS=numpy`` or ``numba`` decides for a whole process), ``"numba"`` (raises
@@ -125,7 +126,8 @@ def _build() -> SimpleNamespace:
     from safenav.filters import _compiled_rows
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
-        "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated")})
+        "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
+        "plan_check")})
     _warm(kernels)
     return kernels
 
@@ -152,3 +154,7 @@ def _warm(kernels: SimpleNamespace) -> None:
                                np.zeros(2), matrix, 1, 2, np.array([3, 4], dtype=np.intp))
     kernels.sqp_violated(jacobian, np.zeros(2), dx, dy, 1.0 / radii, values, radii, 0.0, np.zeros(2), candidates,
                          working, 1e-9)
+    # the MPC's check of a plan: two periods, one disk
+    commands, bounds = np.zeros((2, 2)), np.ones((2, 2))
+    kernels.plan_check(commands, np.zeros(2), 0.5, 0.5, 0.05, 0.1, np.zeros((1, 2)), points, np.zeros((2, 1)),
+                       np.zeros((2, 1)), -bounds, bounds, np.ones((1, 2)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 
@@ -14,6 +15,7 @@ from safenav import Pose2D, preset, unicycle_step
 from safenav.errors import MissingDependency, SafeNavError, SafeNavWarning, UnknownName
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, kernels
 from safenav.filters.base import View
+from safenav.filters.mpc import MPCProblem
 from safenav.filters.perception import Frontier, shadow_points
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
@@ -219,6 +221,62 @@ def test_the_compiled_sqp_plans_every_recorded_problem_as_numpy_does():
             worst = max(worst, float(np.max(np.abs(compiled.commands - reference.commands))))
     assert solved >= 490
     assert worst <= 1e-9, worst
+
+
+@functools.cache
+def _planners(name: str, dt: float, settings_key: tuple) -> tuple[MPCSafetyFilter, MPCSafetyFilter]:
+    settings_ = dict(settings_key)
+    return (MPCSafetyFilter(preset(name), dt, kernels="numba", **settings_),
+            MPCSafetyFilter(preset(name), dt, kernels="numpy", **settings_))
+
+
+PLANNERS = [("rosbot", ()), ("m2wr", (("body", "cover"), ("n_disks", 3))), ("puzzlebot", (("time_constant", 0.1),)),
+            ("m2wr", (("body", "cover"), ("time_constant", 0.05)))]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.data())
+def test_the_compiled_plan_check_is_the_numpy_check(data):
+    """The MPC's verification of a plan (the rollout through the base's lag and the drift knot, the body disks at
+    every knot, the smallest distance to every point, the bounds, the acceleration between periods and the hold)
+    compiled and in numpy, on random plans and problems: the same numbers to 1e-12, plans that break the bounds
+    included; a plan with a non-finite command fails every test in both."""
+    name, settings_key = data.draw(st.sampled_from(PLANNERS))
+    dt = data.draw(st.sampled_from([0.02, 0.05, 0.1]))
+    compiled, reference = _planners(name, dt, settings_key)
+    robot = compiled.robot
+    horizon, disks = compiled.horizon, compiled.offsets.shape[0]
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    count = data.draw(st.integers(0, 40))
+    hold = data.draw(st.integers(1, 3))
+    scale = np.array([robot.v_max, robot.omega_max])
+    commands = rng.uniform(-1.1, 1.1, (horizon, 2)) * scale
+    if data.draw(st.booleans()):    # a smooth plan, within the acceleration limits
+        commands = np.cumsum(rng.uniform(-1.0, 1.0, (horizon, 2)) * compiled._step, axis=0)
+    lower = np.tile(robot.lower, (horizon, 1)) * rng.uniform(0.5, 1.0, (horizon, 2))
+    upper = np.tile(robot.upper, (horizon, 1)) * rng.uniform(0.5, 1.0, (horizon, 2))
+    radii = rng.uniform(0.1, 0.5, (count, disks))
+    guaranteed = radii - rng.uniform(0.0, 0.05, (count, disks))
+    if disks > 1 and count:
+        guaranteed[:, -1] = -np.inf         # a column that is never verified
+    problem = MPCProblem(u_nom=scale.copy(), velocity=rng.uniform(-1.0, 1.0, 2) * scale,
+                         points=rng.uniform(-3.0, 3.0, (count, 2)), uncertainty=np.zeros(count), radii=radii,
+                         guaranteed=guaranteed, floor=guaranteed, lower=lower, upper=upper,
+                         layout=compiled._layout_for(hold), frontier=None, min_barrier=0.0, clearance=0.0)
+    original = compiled.offsets
+    if data.draw(st.booleans()):    # disks anywhere in the base frame (off the axis too)
+        compiled.offsets = reference.offsets = rng.uniform(-0.3, 0.3, (disks, 2))
+    try:
+        a, b = compiled.check_plan(problem, commands), reference.check_plan(problem, commands)
+    finally:
+        compiled.offsets = reference.offsets = original
+    for field in ("limits", "clearance", "planned"):
+        assert getattr(a, field) == pytest.approx(getattr(b, field), rel=0.0, abs=1e-12), field
+    for field in ("distances", "poses", "velocities"):
+        np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=0.0, atol=1e-12, err_msg=field)
+    commands[rng.integers(horizon), rng.integers(2)] = rng.choice([np.nan, np.inf])
+    for check in (compiled.check_plan(problem, commands), reference.check_plan(problem, commands)):
+        assert check.limits == math.inf and check.clearance == check.planned == -math.inf
 
 
 def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monkeypatch):

@@ -21,6 +21,7 @@ from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
+from safenav.filters.kernels import plain
 from safenav.filters.mpc.config import MPCConfig
 from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
 from safenav.filters.mpc.plan import (
@@ -601,8 +602,18 @@ class MPCSafetyFilter(SafetyFilter):
     def check_plan(self, problem: MPCProblem, commands: np.ndarray) -> PlanCheck:
         """How far ``commands`` ``(P, 2)`` are from satisfying every constraint of ``problem``."""
         commands = np.asarray(commands, dtype=float).reshape(self.horizon, 2)
-        limits = float(np.max(np.maximum(problem.lower - commands, commands - problem.upper)))
         steps = self._ramps_for(problem.layout).steps
+        if not np.isfinite(commands).all():    # fails every test a plan has to pass
+            unknown = np.full((problem.points.shape[0], self.offsets.shape[0]), np.nan)
+            return PlanCheck(math.inf, -math.inf, -math.inf, unknown, np.full((self.horizon + 1, 3), np.nan),
+                             np.full((self.horizon + 1, 2), np.nan))
+        if self._kernels is not None:
+            model = self.model
+            return PlanCheck(*self._kernels.plan_check(
+                plain(commands), plain(problem.velocity), model.rho, model.beta, model.dt, model.time_constant,
+                plain(self.offsets), plain(problem.points), plain(problem.guaranteed), plain(problem.radii),
+                plain(problem.lower), plain(problem.upper), plain(steps)))
+        limits = float(np.max(np.maximum(problem.lower - commands, commands - problem.upper)))
         limits = max(limits, float(np.max(np.abs(commands[1:] - commands[:-1]) - steps)))
         knots, poses, velocities = self.model.knot_poses(commands, problem.velocity)
         gaps = distances(disk_centres(knots, self.offsets), problem.points)
