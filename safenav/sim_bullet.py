@@ -113,7 +113,7 @@ from safenav._checks import boolean, choice, integer, number, positive
 from safenav._optional import require
 from safenav.base_models import BASE_MODELS, period_velocities
 from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
-from safenav.geometry import Pose2D, is_convex, unicycle_step
+from safenav.geometry import Pose2D, counter_clockwise, is_convex, unicycle_step
 from safenav.robot import LidarSpec, RobotSpec, as_command
 from safenav.scan import LaserScan
 from safenav.seeding import generator, stream
@@ -200,6 +200,17 @@ class _CastLidar(NamedTuple):
     """Distance from the base origin to the lidar [m]."""
     range_noise: float
     """Std of the Gaussian range noise [m]."""
+    in_footprint: bool
+    """Whether the lidar lies inside the footprint the truth measures (then, with the footprint clear of every
+    obstacle, so is the lidar)."""
+
+
+def _inside_convex(polygon: np.ndarray, point: tuple[float, float]) -> bool:
+    """Whether ``point`` lies inside or on the convex ``polygon`` ``(V, 2)`` (either orientation)."""
+    ordered = counter_clockwise(polygon)
+    edges = np.roll(ordered, -1, axis=0) - ordered
+    offsets = np.asarray(point, dtype=float) - ordered
+    return bool(np.all(edges[:, 0] * offsets[:, 1] - edges[:, 1] * offsets[:, 0] >= 0.0))
 
 
 def gui_problem() -> str | None:
@@ -488,6 +499,7 @@ class BulletSim:
                 true_mount=Pose2D(mount.x, mount.y, mount.yaw + self.config.mount_yaw_error),
                 mount_offset=math.hypot(mount.x, mount.y),
                 range_noise=lidar.noise_std if self.config.range_noise is None else self.config.range_noise,
+                in_footprint=self._footprint is not None and _inside_convex(self._footprint, (mount.x, mount.y)),
             ))
         self._ray_from, self._ray_to, self._cast_lidars = starts, ends, tuple(cast)
 
@@ -689,7 +701,8 @@ class BulletSim:
 
     def _sensor_inside(self, cast: _CastLidar, pose: Pose2D, clearance: float | None, time: float) -> bool:
         """Whether the lidar sits inside an obstacle at ``time`` (only possible when the body overlaps one)."""
-        if clearance is not None and self._footprint is None and clearance >= cast.mount_offset - self.robot.radius:
+        if clearance is not None and (clearance >= 0.0 if cast.in_footprint else
+                                      self._footprint is None and clearance >= cast.mount_offset - self.robot.radius):
             return False
         sensor = pose.compose(cast.true_mount)
         return self._disk_truth((sensor.x, sensor.y), time) + self.robot.radius < 0.0
