@@ -661,7 +661,7 @@ class BulletSim:
         In a world without moving obstacles the rays of the same pose hit the same points: a base that
         has not moved (exactly the same pose: stopped, or held by the filter) reuses the last batch's
         fractions instead of casting again; the noise is drawn afresh as always, so the scans and the
-        random streams are those of a new cast. About a fifth of a collision sweep's periods (2026-11-28).
+        random streams are those of a new cast (about a fifth of the periods of the collision sweep).
         """
         if not self._movers and pose == self._last_cast[0]:
             return self._last_cast[1]

@@ -91,8 +91,9 @@ def test_a_sensor_inside_an_obstacle_reads_minus_infinity_everywhere():
 @pytest.mark.parametrize(("x", "inside"), [(0.55, False), (0.26, False), (0.2, False), (0.1, True), (-0.2, True)])
 def test_with_the_footprint_truth_the_lidar_reads_minus_infinity_only_from_inside_an_obstacle(x, inside, monkeypatch):
     """The m2wr's lidar sits 0.15 m ahead of the base, inside its 0.5 x 0.3 m box (front at 0.25 m). A block whose
-    near face is ``x`` ahead: clear of the box, overlapping the box but not the lidar, overlapping the lidar. The lidar's
-    own clearance is looked up only when the footprint overlaps something (a clear footprint holds its lidar clear)."""
+    near face is ``x`` ahead: clear of the box, overlapping the box but not the lidar, overlapping the lidar. The
+    lidar's own clearance is looked up only when the footprint overlaps something (a clear footprint holds its lidar
+    clear)."""
     robot = preset("m2wr")
     world = World("block", (Box((x + 0.2, 0.0), (0.4, 2.0)),))
     with BulletSim(world, robot, SimConfig(range_noise=0.0, truth="footprint")) as sim:
