@@ -263,13 +263,13 @@ def test_the_compiled_plan_check_is_the_numpy_check(data):
                          points=rng.uniform(-3.0, 3.0, (count, 2)), uncertainty=np.zeros(count), radii=radii,
                          guaranteed=guaranteed, floor=guaranteed, lower=lower, upper=upper,
                          layout=compiled._layout_for(hold), frontier=None, min_barrier=0.0, clearance=0.0)
-    original = compiled.offsets
+    originals = compiled.offsets, reference.offsets
     if data.draw(st.booleans()):    # disks anywhere in the base frame (off the axis too)
         compiled.offsets = reference.offsets = rng.uniform(-0.3, 0.3, (disks, 2))
     try:
         a, b = compiled.check_plan(problem, commands), reference.check_plan(problem, commands)
     finally:
-        compiled.offsets = reference.offsets = original
+        compiled.offsets, reference.offsets = originals
     for field in ("limits", "clearance", "planned"):
         assert getattr(a, field) == pytest.approx(getattr(b, field), rel=0.0, abs=1e-12), field
     for field in ("distances", "poses", "velocities"):
