@@ -1,7 +1,7 @@
 """The numba code of :mod:`safenav.filters.kernels` (imported only when numba is installed and asked for).
 
 Each function mirrors numpy code named in its docstring (:mod:`safenav.filters.rows`, the perception's shadow
-edges, the MPC's direct SQP); ``tests/filters/test_kernels.py`` checks each against it.
+edges, the MPC's direct SQP and its check of a plan); ``tests/filters/test_kernels.py`` checks each against it.
 """
 
 from __future__ import annotations
