@@ -110,6 +110,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from safenav._checks import boolean, choice, integer, number, positive
+from safenav._kernels import KERNELS
 from safenav._optional import require
 from safenav.base_models import BASE_MODELS, period_velocities
 from safenav.errors import InvalidCommand, InvalidConfig, SimulatorError
@@ -119,6 +120,7 @@ from safenav.scan import LaserScan
 from safenav.seeding import generator, stream
 from safenav.worlds import World, obstacle_mesh
 from safenav.worlds.dynamic import DynamicWorld
+from safenav.worlds.shapes import COMPILED_GAPS
 
 __all__ = ["BulletSim", "SimConfig", "SimState", "SimulatorError", "gui_problem", "import_pybullet", "obstacle_mesh"]
 
@@ -261,6 +263,9 @@ class SimConfig:
             round, and keeps its disk), ``"disk"`` (the circumscribed disk of radius ``robot.radius``), or
             ``"auto"`` (default): the footprint when it is convex, else the disk (a concave footprint's
             exact clearance is not implemented; its circumscribed disk over-reports contacts).
+        kernels: how the footprint's exact clearance is computed: ``"auto"`` (default: numba's compiled loops
+            when numba is installed, ``pip install "safenav[fast]"``; ``SAFENAV_KERNELS=numpy`` or ``numba``
+            decides for a whole process), ``"numba"`` or ``"numpy"`` (the reference); the same values.
     """
 
     control_dt: float = 0.05
@@ -278,6 +283,7 @@ class SimConfig:
     base: str = BASE_MODELS[0]
     base_time_constant: float | None = None
     truth: str = "auto"
+    kernels: str = "auto"
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -298,6 +304,7 @@ class SimConfig:
         put(self, "gui", boolean("SimConfig.gui", self.gui))
         put(self, "gui_realtime", boolean("SimConfig.gui_realtime", self.gui_realtime))
         put(self, "num_threads", integer("SimConfig.num_threads", self.num_threads, low=0))
+        put(self, "kernels", choice("SimConfig.kernels", self.kernels, KERNELS))
         put(self, "cylinder_tolerance", positive("SimConfig.cylinder_tolerance", self.cylinder_tolerance))
         put(self, "base", choice("base model (SimConfig.base)", self.base, BASE_MODELS))
         if self.base_time_constant is not None:
@@ -407,6 +414,7 @@ class BulletSim:
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
         self._footprint = _truth_footprint(robot, config.truth)
+        self._gap_kernels = COMPILED_GAPS.select(config.kernels) if self._footprint is not None else None
         self._mover_bodies = [self._build_mover(mover.shape) for mover in self._movers]
         self._robot_body = self._build_robot()
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
@@ -582,7 +590,7 @@ class BulletSim:
             if self._movers:
                 return [float(self.world.footprint_clearance_at(row[None], self._footprint, time)[0])
                         for row, time in zip(placed, times, strict=True)]
-            return self.world.footprint_clearance(placed, self._footprint).tolist()
+            return self.world.footprint_clearance(placed, self._footprint, self._gap_kernels).tolist()
         if self._movers:
             return [self._disk_truth(pose, time) for pose, time in zip(poses, times, strict=True)]
         positions = np.array([(pose.x, pose.y) for pose in poses], dtype=float).reshape(-1, 2)

@@ -463,6 +463,29 @@ def test_among_moving_obstacles_a_base_at_rest_casts_every_period(monkeypatch):
     assert states[-1].clearance < states[0].clearance - 0.9
 
 
+def test_the_compiled_footprint_truth_gives_the_same_episode(monkeypatch):
+    """``SimConfig.kernels``: the m2wr driven through clutter into contact with the footprint truth computed by
+    numba and by numpy: the same poses, clearances, period minima and first contact; ``SAFENAV_KERNELS`` decides
+    ``"auto"``; a bad value is named."""
+    pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
+    robot = preset("m2wr")
+    world = random_world(3, robot, n_obstacles=25)
+    runs = {}
+    for kernels in ("numba", "numpy"):
+        with BulletSim(world, robot, SimConfig(kernels=kernels, truth="footprint"), seed=1) as sim:
+            assert (sim._gap_kernels is not None) == (kernels == "numba")
+            rng = np.random.default_rng(4)
+            states = [sim.reset()] + [sim.step((rng.uniform(0.2, 0.6), rng.uniform(-1.5, 1.5))) for _ in range(300)]
+        runs[kernels] = [(s.pose, s.clearance, s.min_clearance, s.first_collision_time) for s in states]
+    assert runs["numba"] == runs["numpy"]
+    assert runs["numpy"][-1][3] is not None and min(run[2] for run in runs["numpy"]) < 0.0   # contact, overlap
+    monkeypatch.setenv("SAFENAV_KERNELS", "numpy")
+    with BulletSim(world, robot, SimConfig(truth="footprint")) as sim:
+        assert sim._gap_kernels is None
+    with pytest.raises(UnknownName, match="cuda"):
+        SimConfig(kernels="cuda")
+
+
 def test_actuation_noise_is_relative_and_seeded():
     robot = preset("rosbot")
     config = SimConfig(actuation_noise=0.1, range_noise=0.0)

@@ -29,44 +29,23 @@ about 1 s from numba's cache on disk), so no control call compiles.
 
 from __future__ import annotations
 
-import os
-import threading
-import warnings
 from types import SimpleNamespace
 
 import numpy as np
 
-from safenav import _checks
+from safenav import _kernels
 from safenav._optional import require
-from safenav.errors import SafeNavWarning
 
 __all__ = ["KERNELS", "available", "frozen", "load", "plain", "resolve", "select"]
 
-KERNELS = ("auto", "numba", "numpy")
+KERNELS = _kernels.KERNELS
 """Values of ``kernels`` in :class:`~safenav.filters.CBFConfig`, :class:`~safenav.filters.MPCConfig` and
 :class:`~safenav.filters.ZonesConfig`."""
 
-_lock = threading.Lock()
-_compiled: SimpleNamespace | None = None
-_failure: str | None = None     # why compiling failed in this process (``"auto"`` then keeps to numpy)
+available, resolve, plain, frozen = _kernels.available, _kernels.resolve, _kernels.plain, _kernels.frozen
 
-
-def available() -> bool:
-    """Whether numba can be imported."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def resolve(name: str) -> str:
-    """``"numba"`` or ``"numpy"``: the path ``name`` (one of :data:`KERNELS`) selects here."""
-    if name == "auto":
-        return "numba" if available() else "numpy"
-    if name == "numba":
-        require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
-    return name
+#: The filters' kernels (built by :func:`_build`, looked up when first loaded, so that a test can replace it).
+GROUP = _kernels.KernelGroup(lambda: _build(), "the filters use numpy (the same rows, slower)")
 
 
 def select(name: str) -> SimpleNamespace | None:
@@ -78,47 +57,12 @@ def select(name: str) -> SimpleNamespace | None:
     variable ``SAFENAV_KERNELS`` (``numba`` or ``numpy``) decides for ``"auto"`` (a whole process, a ROS node,
     a benchmark run, without changing any config).
     """
-    global _failure
-    if name == "auto" and os.environ.get("SAFENAV_KERNELS", "auto") != "auto":
-        name = _checks.choice("SAFENAV_KERNELS", os.environ["SAFENAV_KERNELS"], KERNELS)
-    if resolve(name) == "numpy":
-        return None
-    if name == "auto" and _failure is not None:
-        return None
-    try:
-        return load()
-    except Exception as error:   # numba's compile errors have no common base; "auto" must still give a filter
-        if name != "auto":
-            raise
-        _failure = f"{type(error).__name__}: {error}"
-        warnings.warn(f"safenav's compiled kernels did not compile ({_failure}); the filters use numpy (the same "
-                      f"rows, slower)", SafeNavWarning, stacklevel=3)
-        return None
+    return GROUP.select(name, stacklevel=4)
 
 
 def load() -> SimpleNamespace:
     """The compiled kernels (``pair_minima``, ``obstacle_rows``, ...), compiled and warmed on the first call."""
-    global _compiled
-    with _lock:
-        if _compiled is None:
-            _compiled = _build()
-        return _compiled
-
-
-def plain(array: np.ndarray) -> np.ndarray:
-    """``array`` as the kernels were compiled for it: C-contiguous, writable float64 (a copy only when it is not)."""
-    if array.dtype == np.float64 and array.flags.c_contiguous and array.flags.writeable:
-        return array
-    return np.array(array, dtype=float, order="C")
-
-
-def frozen(array: np.ndarray) -> np.ndarray:
-    """``array`` read-only, as a scan's arrays are (and the kernels were compiled for)."""
-    if not array.flags.writeable:
-        return array
-    view = array.view()
-    view.flags.writeable = False
-    return view
+    return GROUP.load()
 
 
 def _build() -> SimpleNamespace:

@@ -16,11 +16,14 @@ import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from safenav._checks import number, positive, vector
+from safenav._kernels import KernelGroup, plain
+from safenav._optional import require
 from safenav.errors import InvalidConfig
 from safenav.geometry import counter_clockwise
 
@@ -300,19 +303,24 @@ def _candidates(polygons: np.ndarray, sides: BoxSides, circles: np.ndarray) -> t
     return sides, circles if near_circle.all() else circles[near_circle]
 
 
-def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray | BoxSides, circles: np.ndarray) -> np.ndarray:
+def polygon_gaps(polygons: np.ndarray, boxes: np.ndarray | BoxSides, circles: np.ndarray,
+                 compiled: SimpleNamespace | None = None) -> np.ndarray:
     """Exact signed distance ``(K,)`` [m] from each convex polygon to the nearest box or circle.
 
     Args:
         polygons: ``(K, V, 2)`` convex polygons, counter-clockwise [m].
         boxes: ``(M, 6)`` rows of :func:`box_array`, or their :func:`box_sides` (a world computes them once).
         circles: ``(C, 3)`` rows ``(cx, cy, radius)`` [m].
+        compiled: the compiled kernels (:data:`COMPILED_GAPS`), or ``None``: numpy (the reference; the same values).
 
     Returns:
         Per polygon, the distance to the nearest obstacle when apart, minus the penetration depth (the
         shortest translation that separates them) when they overlap; ``inf`` without obstacles.
     """
     sides = boxes if isinstance(boxes, BoxSides) else box_sides(boxes)
+    if compiled is not None:
+        return compiled.polygon_gaps(plain(polygons), plain(sides.boxes), plain(sides.corners), plain(sides.normals),
+                                     plain(circles))
     if sides.boxes.shape[0] + circles.shape[0] > 1:
         sides, circles = _candidates(polygons, sides, circles)
     start = polygons
@@ -349,3 +357,19 @@ def placed_polygons(poses: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
     return np.stack((poses[:, None, 0] + c * polygon[None, :, 0] - s * polygon[None, :, 1],
                      poses[:, None, 1] + s * polygon[None, :, 0] + c * polygon[None, :, 1]), axis=-1)
+
+
+def _build_gaps() -> SimpleNamespace:
+    require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
+    from safenav.worlds import _compiled_gaps
+
+    kernels = SimpleNamespace(polygon_gaps=_compiled_gaps.polygon_gaps)
+    square = np.array([[[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]]])
+    sides = box_sides(np.array([[2.0, 0.0, 0.5, 0.5, 1.0, 0.0]]))
+    kernels.polygon_gaps(square, sides.boxes, sides.corners, sides.normals, np.array([[0.0, 2.0, 0.3]]))
+    return kernels
+
+
+#: The compiled exact clearance of a convex polygon (:func:`polygon_gaps` with ``compiled=``), for the simulator's
+#: footprint truth (:attr:`safenav.sim_bullet.SimConfig.kernels`).
+COMPILED_GAPS = KernelGroup(_build_gaps, "the simulator measures clearance with numpy (the same values, slower)")

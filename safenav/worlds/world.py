@@ -14,6 +14,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -139,18 +140,21 @@ class World:
         """
         return float(self.signed_distance(np.array([[pose[0], pose[1]]]))[0]) - radius
 
-    def footprint_clearance(self, poses: np.ndarray, footprint: np.ndarray) -> np.ndarray:
+    def footprint_clearance(self, poses: np.ndarray, footprint: np.ndarray,
+                            compiled: SimpleNamespace | None = None) -> np.ndarray:
         """Exact signed clearance [m] of a convex footprint at each of ``poses`` to the nearest obstacle.
 
         Args:
             poses: ``(K, 3)`` base poses ``(x, y, yaw)`` [m, m, rad].
             footprint: ``(V, 2)`` the convex body polygon in the base frame [m], either orientation.
+            compiled: the compiled kernels (:data:`~safenav.worlds.shapes.COMPILED_GAPS`), or ``None``: numpy
+                (the same values).
 
         Returns:
             ``(K,)`` distances from the polygon to the nearest obstacle [m]: negative when it overlaps one
             (minus the penetration depth), ``inf`` in a world without obstacles.
         """
-        return polygon_gaps(placed_polygons(poses, footprint), self._box_sides, self._circles)
+        return polygon_gaps(placed_polygons(poses, footprint), self._box_sides, self._circles, compiled)
 
     def scene(self) -> Scene:
         """The obstacle outlines as a :class:`~safenav.synthetic.Scene` for exact analytic ray casts.

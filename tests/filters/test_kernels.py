@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from safenav import Pose2D, preset, unicycle_step
+from safenav import Pose2D, _kernels, preset, unicycle_step
 from safenav.errors import MissingDependency, SafeNavError, SafeNavWarning, UnknownName
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, kernels
 from safenav.filters.base import View
@@ -132,8 +132,8 @@ def test_kernels_setting_is_checked():
 
 
 def test_asking_for_numba_without_it_names_the_pip_line(monkeypatch):
-    monkeypatch.setattr(kernels, "require", _missing)
-    monkeypatch.setattr(kernels, "available", lambda: False)
+    monkeypatch.setattr(_kernels, "require", _missing)
+    monkeypatch.setattr(_kernels, "available", lambda: False)
     with pytest.raises(MissingDependency) as error:
         CBFSafetyFilter(preset("rosbot"), kernels="numba")
     assert 'pip install "safenav[fast]"' in str(error.value) or "safenav[fast]" in str(error.value)
@@ -285,8 +285,8 @@ def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monk
     def broken():
         raise RuntimeError("LLVM ERROR: no target for this CPU")
 
-    monkeypatch.setattr(kernels, "_compiled", None)
-    monkeypatch.setattr(kernels, "_failure", None)
+    monkeypatch.setattr(kernels.GROUP, "compiled", None)
+    monkeypatch.setattr(kernels.GROUP, "failure", None)
     monkeypatch.setattr(kernels, "_build", broken)
     with pytest.warns(SafeNavWarning, match="no target for this CPU"):
         safety = CBFSafetyFilter(preset("rosbot"))
