@@ -24,7 +24,9 @@ polygon body and the cut's reference (``cut=False``, which the contract checker 
 it compiles; ``SAFENAV_KERNELS=numpy`` or ``numba`` decides for a whole process), ``"numba"`` (raises
 :class:`~safenav.errors.MissingDependency` with the pip line when absent) or ``"numpy"``. The kernels are
 compiled for the exact argument types the filters pass when the first filter is built (about 5 s, then
-about 1 s from numba's cache on disk), so no control call compiles.
+about 1 s from numba's cache on disk), so no control call compiles. The selection itself (:func:`select`, the
+warning of ``"auto"``, ``SAFENAV_KERNELS``) is :class:`safenav._kernels.KernelGroup`'s, which the simulator's
+compiled clearance (:attr:`safenav.sim_bullet.SimConfig.kernels`) shares.
 """
 
 from __future__ import annotations
