@@ -2,7 +2,7 @@
 
 :func:`polygon_gaps` mirrors :func:`safenav.worlds.shapes.polygon_gaps` line for line in loops (the same
 separating axes, corner-to-side and centre-to-side distances, in the same arithmetic), without its pruning of
-the obstacles that cannot be the nearest (pruning changes no value); ``tests/worlds/test_shapes.py`` checks
+the obstacles that cannot be the nearest (pruning changes no value); ``tests/worlds/test_world.py`` checks
 that both give the same values.
 """
 

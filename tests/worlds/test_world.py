@@ -111,8 +111,7 @@ def test_the_compiled_footprint_clearance_is_the_numpy_one(parametrised):
     """``COMPILED_GAPS`` (numba, loops over every obstacle, no pruning) against the numpy reference on random
     five-pose periods in random worlds of both presets with a footprint, overlaps included, and on worlds of
     boxes only, of cylinders only and without obstacles: the same values to 1e-12 (bit for bit, as measured)."""
-    numba = pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
-    del numba
+    pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
     from safenav.worlds.shapes import COMPILED_GAPS
 
     compiled = COMPILED_GAPS.load()
