@@ -293,6 +293,84 @@ def shadow_beams(ranges, readings, hit, no_return, limit, spacing, jump, wraps):
 
 
 @_jit
+def seen_again(ranges, readings, hit, no_return, range_max, angle_min, increment, mount_x, mount_y, mount_yaw,
+               wraps, wide, points, tolerance, uncertainty):
+    """perception._seen_again for one scan, point by point: ``(again, points, uncertainty)``, the last two copies
+    (narrowed beyond an edge of the field of view where the numpy code narrows them). ``wraps``: the scan covers
+    the full turn; ``wide``: it covers half a turn or more."""
+    n, count = ranges.size, points.shape[0]
+    seen = np.empty(n)   # perception._seen_ranges
+    for b in range(n):
+        if readings[b] == hit:
+            seen[b] = ranges[b]
+        elif readings[b] == no_return:
+            seen[b] = range_max
+        else:
+            seen[b] = -np.inf
+    again = np.zeros(count, dtype=np.bool_)
+    dx, dy = np.empty(count), np.empty(count)
+    reach, offset = np.empty(count), np.empty(count)
+    fans = False
+    two_pi = 2.0 * math.pi
+    for i in range(count):
+        dx[i] = points[i, 0] - mount_x
+        dy[i] = points[i, 1] - mount_y
+        reach[i] = math.hypot(dx[i], dy[i])
+        offset[i] = (math.atan2(dy[i], dx[i]) - mount_yaw - angle_min + 0.5 * increment) % two_pi - 0.5 * increment
+        index = math.floor(offset[i] / increment + 0.5)
+        if 0 <= index < n and seen[int(index)] >= reach[i] - tolerance[i]:
+            again[i] = True
+            fans = fans or uncertainty[i] > 0.0
+    points_out, uncertainty_out = points.copy(), uncertainty.copy()
+    if not fans:
+        return again, points_out, uncertainty_out
+    # the edges' lines through the lidar, their normals into the view (used by points beyond an edge)
+    first = angle_min + mount_yaw - 0.5 * increment
+    last = angle_min + mount_yaw + (n - 0.5) * increment
+    normals = np.array([[-math.sin(first), math.cos(first)], [math.sin(last), -math.cos(last)]])
+    for i in range(count):
+        if not again[i]:
+            continue
+        u, r = uncertainty[i], reach[i]
+        half = math.pi if u >= r else math.asin(min(u / max(r, 1e-12), 1.0))
+        low = math.floor((offset[i] - half) / increment + 0.5)
+        high = math.floor((offset[i] + half) / increment + 0.5)
+        under = over = beyond = False
+        if wraps:
+            if high - low + 1 >= n:
+                low, high = 0, n - 1
+        else:
+            under, over = low < 0, high >= n
+            beyond = (under != over and u < r) or (u >= r and wide)
+            if under or over:
+                again[i] = False
+            low, high = max(low, 0), min(high, n - 1)
+        if (again[i] or beyond) and high > low:
+            smallest = np.inf   # perception._range_minima: the smallest reading over the fan, round the turn
+            for b in range(low, high + 1):
+                value = seen[b % n]
+                if value < smallest:
+                    smallest = value
+            if smallest == -np.inf:   # a beam the fan meets says nothing
+                again[i] = beyond = False
+        if not beyond:
+            continue
+        depth_first = dx[i] * normals[0, 0] + dy[i] * normals[0, 1]
+        depth_last = dx[i] * normals[1, 0] + dy[i] * normals[1, 1]
+        pick = 1
+        if under and over:
+            pick = 0 if depth_first >= depth_last else 1
+        elif under:
+            pick = 0
+        depth = depth_first if pick == 0 else depth_last
+        if depth > 0.0:
+            points_out[i, 0] -= depth * normals[pick, 0]
+            points_out[i, 1] -= depth * normals[pick, 1]
+            uncertainty_out[i] = math.sqrt(max(u * u - depth * depth, 0.0))
+    return again, points_out, uncertainty_out
+
+
+@_jit
 def sqp_values(centres, points, inverse_radii, radii, row_state, row_window, check_window):
     """mpc.sqp.DirectSQP.solve, the start of an iteration: every clearance row's value at the iterate ``(M, C)``
     [m] and its ``dx``, ``dy`` (centre minus point); the rows that start in the QP (active at the last answer,

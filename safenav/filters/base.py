@@ -1000,7 +1000,8 @@ class SafetyFilter(abc.ABC):
             recalled, uncertainty = np.empty((0, 2)), np.empty(0)
         else:
             noise = max(scan_noise(self.robot), 0.0)
-            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01, scan_error=error)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01, scan_error=error,
+                                                       compiled=self._kernels)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
         return View(scans, points, np.concatenate((seen_uncertainty, uncertainty)), current.shape[0],

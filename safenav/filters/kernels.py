@@ -2,7 +2,7 @@
 
 The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
 numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
-installed (``pip install "safenav[fast]"``) four pieces run as compiled loops instead
+installed (``pip install "safenav[fast]"``) five pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
 * the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
@@ -10,6 +10,9 @@ installed (``pip install "safenav[fast]"``) four pieces run as compiled loops in
   half-planes, then the barrier, braking and sweep rows and their ramp corners, in the order
   :mod:`~safenav.filters.rows` stacks them);
 * the edges of what obstacles hide (``shadow_beams``, :func:`~safenav.filters.perception.shadow_points`);
+* which remembered points a scan shows again or contradicts, and where those it cannot see may still be
+  (``seen_again``, :meth:`~safenav.filters.perception.PointMemory.recall`: every point's beam, the beams its
+  uncertainty fans over, the narrowing beyond an edge of the field of view);
 * the MPC's direct SQP: the clearance rows' values at an iterate, the QP's rows and the check of each
   answer (``sqp_values``, ``sqp_clearance_rows``, ``sqp_violated``, :class:`~safenav.filters.mpc.DirectSQP`);
 * the MPC's verification of a plan (``plan_check``, :meth:`~safenav.filters.MPCSafetyFilter.check_plan`): the
@@ -73,7 +76,7 @@ def _build() -> SimpleNamespace:
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
         "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
-        "plan_check")})
+        "plan_check", "seen_again")})
     _warm(kernels)
     return kernels
 
@@ -91,6 +94,8 @@ def _warm(kernels: SimpleNamespace) -> None:
                           0.5, z[0], z[1])
     kernels.shadow_beams(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 2.0,
                          0.05, 0.3, True)
+    kernels.seen_again(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 10.0,
+                       -1.0, 1.0, 0.0, 0.0, 0.0, False, True, points, np.full(2, 0.02), np.full(2, 0.1))
     # the MPC's SQP: two points, one knot's two disks, two knot variables and one slack per point
     centres, jacobian, radii = np.array([[0.1, 0.2], [0.0, 0.1]]), np.ones((2, 2, 2)), np.full((2, 2), 0.3)
     dx, dy, values, working, candidates = kernels.sqp_values(centres, points, 1.0 / radii, radii,

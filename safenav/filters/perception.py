@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from safenav.filters.body import BodyModel
-from safenav.filters.kernels import frozen
+from safenav.filters.kernels import frozen, plain
 from safenav.geometry import TWO_PI, Pose2D, unicycle_step
 from safenav.scan import LaserScan, Reading
 
@@ -455,8 +455,8 @@ class PointMemory:
             self._error[2] += self._error[1] * math.hypot(motion.x, motion.y)
             self._error[:2] += uncertainty_rate
 
-    def recall(self, scans: tuple[LaserScan, ...], tolerance: float, scan_error: tuple[float, float] = (0.0, 0.0)
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def recall(self, scans: tuple[LaserScan, ...], tolerance: float, scan_error: tuple[float, float] = (0.0, 0.0),
+               compiled: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The remembered points no current beam sees again or contradicts, and their uncertainty.
 
         Args:
@@ -468,6 +468,7 @@ class PointMemory:
                 ``d`` from the base origin adds to its uncertainty against them; a point narrowed down to the
                 part of its disk beyond an edge of a field of view keeps that (the edge is where the scan is), the
                 others their own.
+            compiled: the kernels of :mod:`~safenav.filters.kernels` (the same test, by one compiled loop per scan).
         """
         if self._points.shape[0] == 0:
             return np.empty((0, 2)), np.empty(0)
@@ -476,7 +477,11 @@ class PointMemory:
         against = uncertainty
         keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
-            seen, points, uncertainty = _seen_again(scan, points, tolerance + uncertainty, uncertainty)
+            if compiled is None:
+                seen, points, uncertainty = _seen_again(scan, points, tolerance + uncertainty, uncertainty)
+            else:
+                seen, points, uncertainty = _seen_again_compiled(compiled, scan, points, tolerance + uncertainty,
+                                                                 uncertainty)
             keep &= ~seen
         uncertainty = np.where(uncertainty == against, own, uncertainty)   # not narrowed: its own uncertainty
         return points[keep], uncertainty[keep]
@@ -847,6 +852,16 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
     points[rows] -= depth[:, None] * normal
     uncertainty[rows] = np.sqrt(np.maximum(uncertainty[rows] ** 2 - depth ** 2, 0.0))
     return again, points, uncertainty
+
+
+def _seen_again_compiled(compiled: Any, scan: LaserScan, points: np.ndarray, tolerance: np.ndarray,
+                         uncertainty: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_seen_again` by the compiled kernel ``compiled.seen_again`` (the same masks and points)."""
+    mount, n, increment = scan.mount, scan.n_beams, scan.angle_increment
+    return compiled.seen_again(frozen(scan.ranges), frozen(scan.readings), _HIT, _NO_RETURN, float(scan.range_max),
+                               float(scan.angle_min), float(increment), float(mount.x), float(mount.y),
+                               float(mount.yaw), bool(n * increment >= TWO_PI - 1e-9), bool(n * increment >= math.pi),
+                               plain(points), plain(tolerance), plain(uncertainty))
 
 
 def _range_minima(values: np.ndarray, minima: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:

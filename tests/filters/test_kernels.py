@@ -196,6 +196,67 @@ def test_an_occluder_at_the_first_beam_is_an_edge_only_round_a_full_turn(full_tu
     assert at_first.any() == full_turn
 
 
+def _memory_scan(rng: np.random.Generator):
+    """A random scan (a full turn or a part of one, the lidar anywhere on the base, any yaw; hits, no returns,
+    NaN, -inf, readings under range_min) and remembered points: on its hits, near them, anywhere, at the lidar;
+    their uncertainties from none to disks that hold the lidar."""
+    from safenav.scan import LaserScan
+
+    n = int(rng.integers(8, 721))
+    view = float(rng.choice([np.radians(60.0), np.radians(120.0), np.pi, np.radians(270.0), np.radians(359.0),
+                             2.0 * np.pi]))
+    if view == 2.0 * np.pi:
+        increment, angle_min = view / n, -np.pi
+    else:
+        increment, angle_min = view / (n - 1), -0.5 * view
+    ranges = rng.uniform(0.2, 5.0, n)
+    if rng.random() < 0.7:   # runs of equal readings: walls, so that fans meet informative beams
+        ranges = np.repeat(ranges[: n // 8 + 1], 8)[:n]
+    kind = rng.random(n)
+    ranges[kind < 0.05] = np.inf
+    ranges[(kind >= 0.05) & (kind < 0.08)] = np.nan
+    ranges[(kind >= 0.08) & (kind < 0.1)] = -np.inf
+    ranges[(kind >= 0.1) & (kind < 0.12)] = 0.01
+    mount = (float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-0.1, 0.1)), float(rng.uniform(-np.pi, np.pi)))
+    scan = LaserScan(angle_min=angle_min, angle_max=angle_min + (n - 1) * increment, angle_increment=increment,
+                     ranges=ranges, range_min=0.05, range_max=6.0, mount=mount)
+    count = int(rng.integers(0, 41))
+    beams = rng.integers(0, n, count)
+    on_hits = scan.beam_points(beams, np.where(np.isfinite(ranges[beams]), ranges[beams], 1.0))
+    points = on_hits + rng.normal(0.0, rng.choice([0.0, 0.01, 0.3]), on_hits.shape)
+    anywhere = rng.random(count) < 0.2
+    points[anywhere] = rng.uniform(-4.0, 4.0, (int(anywhere.sum()), 2))
+    at_lidar = rng.random(count) < 0.03
+    points[at_lidar] = mount[:2]
+    uncertainty = rng.choice([0.0, 0.0, 0.01, 0.1, 0.5, 1.0, 6.0], count)
+    return scan, points, uncertainty
+
+
+def test_the_compiled_recall_test_is_the_numpy_one():
+    """perception._seen_again, compiled and numpy, on 3000 random scans and remembered points (every field of
+    view, any mount, invalid readings, fans over several beams, round the turn, past an edge, disks that hold the
+    lidar): the same points seen again, the same points and uncertainties kept, to rounding. Every branch is met:
+    points seen again, points a fan over a silent beam keeps, points narrowed beyond an edge."""
+    from safenav.filters import perception
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(11)
+    met = dict(again=0, silent=0, narrowed=0)
+    for _ in range(3000):
+        scan, points, uncertainty = _memory_scan(rng)
+        tolerance = 0.02 + uncertainty
+        a = perception._seen_again_compiled(compiled, scan, points, tolerance, uncertainty)
+        b = perception._seen_again(scan, points, tolerance, uncertainty)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_allclose(a[1], b[1], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(a[2], b[2], rtol=0.0, atol=1e-12)
+        met["again"] += int(b[0].sum())
+        nearest_only = perception._seen_again(scan, points, tolerance, np.zeros_like(uncertainty))[0]
+        met["silent"] += int(np.sum(nearest_only & ~b[0] & (uncertainty > 0.0)))
+        met["narrowed"] += int(np.sum(b[2] < uncertainty))
+    assert min(met.values()) > 50, met
+
+
 def test_the_compiled_sqp_plans_every_recorded_problem_as_numpy_does():
     """The MPC's direct SQP with the compiled clearance rows (values, QP rows, check) and with numpy, on the 500
     recorded closed-loop problems of test_mpc_replay: both solve or fail together, the same plans to 1e-9 (the
