@@ -486,6 +486,40 @@ def test_the_compiled_footprint_truth_gives_the_same_episode(monkeypatch):
         SimConfig(kernels="cuda")
 
 
+@pytest.mark.parametrize(("name", "short_by"), [("rosbot", 0.0), ("m2wr", 0.0), ("rosbot", 0.05)])
+def test_rays_cast_only_as_far_as_they_must_reach_read_as_full_rays(monkeypatch, name, short_by):
+    """The compiled kernels shorten each ray to just past the exact obstacle it first meets (and cast it again at
+    full length when it misses there): an episode through clutter with noise and dropout, scans compared period by
+    period with a simulator that casts every ray at full length: the same hits and misses, the ranges to Bullet's
+    rounding, the same poses and clearances. Most rays are shortened, and hardly any cast again; with the reach
+    made ``short_by`` too short, the rays that miss are cast again and read the same."""
+    pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
+    reach = World.ray_reach
+    monkeypatch.setattr(World, "ray_reach", lambda *args, **kwargs: reach(*args, **kwargs) - short_by)
+    robot = preset(name)
+    world = random_world(2, robot, n_obstacles=30)
+    runs = {}
+    for shorten in (True, False):
+        with BulletSim(world, robot, SimConfig(kernels="numba", dropout=0.05), seed=3) as sim:
+            if not shorten:
+                sim._ray_kernels = None
+            rng = np.random.default_rng(8)
+            states = [sim.reset()] + [sim.step((rng.uniform(-0.2, 0.6), rng.uniform(-1.5, 1.5))) for _ in range(200)]
+            runs[shorten] = states, dict(sim.ray_counts)
+    (short, counts), (full, full_counts) = runs[True], runs[False]
+    for a, b in zip(short, full, strict=True):
+        assert (a.pose, a.clearance, a.min_clearance) == (b.pose, b.clearance, b.min_clearance)
+        for scan_a, scan_b in zip(a.scans, b.scans, strict=True):
+            np.testing.assert_array_equal(scan_a.readings, scan_b.readings)
+            np.testing.assert_allclose(scan_a.ranges, scan_b.ranges, rtol=0.0, atol=1e-6)
+    assert counts["cast"] == full_counts["cast"] > 0 and full_counts["shortened"] == 0
+    assert counts["shortened"] > 0.7 * counts["cast"], counts
+    if short_by:
+        assert counts["recast"] > 0.5 * counts["shortened"], counts
+    else:
+        assert counts["recast"] < 0.02 * counts["shortened"], counts
+
+
 def test_actuation_noise_is_relative_and_seeded():
     robot = preset("rosbot")
     config = SimConfig(actuation_noise=0.1, range_noise=0.0)

@@ -82,3 +82,104 @@ def polygon_gaps(polygons, boxes, corners, normals, circles):
             best = min(best, (depth if depth < 0.0 else nearest) - circles[i, 2])
         gaps[k] = best
     return gaps
+
+
+@_jit
+def _circle_entry(ox, oy, ux, uy, cx, cy, radius):
+    """Where the ray from ``o`` along the unit ``u`` enters the circle (``inf``: it does not; ``-1``: it starts
+    inside)."""
+    wx, wy = ox - cx, oy - cy
+    along = wx * ux + wy * uy
+    outside = wx * wx + wy * wy - radius * radius
+    if outside <= 0.0:
+        return -1.0
+    if along < 0.0 and along * along >= outside:
+        return -along - math.sqrt(along * along - outside)
+    return np.inf
+
+
+@_jit
+def _box_entry(ox, oy, ux, uy, box):
+    """Where the ray from ``o`` along the unit ``u`` enters the box (a row of ``shapes.box_array``; ``inf``: it
+    does not; ``-1``: it starts inside)."""
+    dx, dy = ox - box[0], oy - box[1]
+    cb, sb, hx, hy = box[4], box[5], box[2], box[3]
+    lx, ly = cb * dx + sb * dy, -sb * dx + cb * dy
+    vx, vy = cb * ux + sb * uy, -sb * ux + cb * uy
+    if abs(lx) <= hx and abs(ly) <= hy:
+        return -1.0
+    enter, leave = -np.inf, np.inf
+    if vx == 0.0:
+        if abs(lx) > hx:
+            return np.inf
+    else:
+        near, far = (-hx - lx) / vx, (hx - lx) / vx
+        enter, leave = max(enter, min(near, far)), min(leave, max(near, far))
+    if vy == 0.0:
+        if abs(ly) > hy:
+            return np.inf
+    else:
+        near, far = (-hy - ly) / vy, (hy - ly) / vy
+        enter, leave = max(enter, min(near, far)), min(leave, max(near, far))
+    return enter if 0.0 <= enter <= leave else np.inf
+
+
+@_jit
+def ray_reach(x, y, yaw, mounts, increments, counts, directions, lengths, boxes, circles, slack):
+    """Per ray of a base at ``(x, y, yaw)`` [m, m, rad]: how far it must reach to meet what it first meets among the
+    boxes (rows of ``shapes.box_array``) and ``circles`` ``(C, 3)``, plus ``slack`` [m]; its full length
+    (``lengths``) when that is shorter, when it meets nothing, or when its lidar sits inside an obstacle. The rays
+    are the lidars' beams in order, their unit ``directions`` ``(R, 2)`` in the base frame: lidar ``l`` at
+    ``mounts[l] = (x, y, first beam's angle)`` in the base frame, ``counts[l]`` beams ``increments[l]`` apart.
+    Each obstacle is met only by the beams within its bounding circle's angular width (and one beam more either
+    side). (A cylinder's circumscribed polygon, which the simulator casts against, holds its circle: the polygon
+    is met no farther along than the circle.)"""
+    c, s = math.cos(yaw), math.sin(yaw)
+    reach = lengths.copy()
+    first = np.full(lengths.size, np.inf)
+    two_pi = 2.0 * math.pi
+    n_circles = circles.shape[0]
+    offset = 0
+    for lidar in range(mounts.shape[0]):
+        n, increment = counts[lidar], increments[lidar]
+        ox = x + c * mounts[lidar, 0] - s * mounts[lidar, 1]
+        oy = y + s * mounts[lidar, 0] + c * mounts[lidar, 1]
+        start = mounts[lidar, 2] + yaw
+        inside = False
+        for k in range(n_circles + boxes.shape[0]):
+            if k < n_circles:
+                cx, cy, bound = circles[k, 0], circles[k, 1], circles[k, 2]
+            else:
+                box = boxes[k - n_circles]
+                cx, cy, bound = box[0], box[1], math.hypot(box[2], box[3])
+            distance = math.hypot(cx - ox, cy - oy)
+            whole = distance <= bound
+            bearing = (math.atan2(cy - oy, cx - ox) - start) % two_pi
+            half = math.pi if whole else math.asin(bound / distance)
+            for centre in (bearing - two_pi, bearing, bearing + two_pi):
+                low = 0 if whole else max(math.floor((centre - half) / increment) - 1, 0)
+                high = n - 1 if whole else min(math.ceil((centre + half) / increment) + 1, n - 1)
+                for beam in range(low, high + 1):
+                    ray = offset + beam
+                    ux = c * directions[ray, 0] - s * directions[ray, 1]
+                    uy = s * directions[ray, 0] + c * directions[ray, 1]
+                    if k < n_circles:
+                        entry = _circle_entry(ox, oy, ux, uy, cx, cy, bound)
+                    else:
+                        entry = _box_entry(ox, oy, ux, uy, boxes[k - n_circles])
+                    if entry < 0.0:
+                        inside = True
+                        break
+                    if entry < first[ray]:
+                        first[ray] = entry
+                if inside or whole:
+                    break
+            if inside:
+                break
+        if not inside:
+            for beam in range(n):
+                ray = offset + beam
+                if first[ray] + slack < lengths[ray]:
+                    reach[ray] = first[ray] + slack
+        offset += n
+    return reach

@@ -359,17 +359,33 @@ def placed_polygons(poses: np.ndarray, polygon: np.ndarray) -> np.ndarray:
                      poses[:, None, 1] + s * polygon[None, :, 0] + c * polygon[None, :, 1]), axis=-1)
 
 
+class RayFan(NamedTuple):
+    """Lidars' rays in a base frame, for :meth:`~safenav.worlds.World.ray_reach`: lidar ``l`` at ``mounts[l] = (x
+    [m], y [m], its first beam's angle [rad])``, ``counts[l]`` beams ``increments[l]`` [rad] apart; then every ray,
+    the lidars' in order, by its unit ``directions`` ``(R, 2)`` and ``lengths`` ``(R,)`` [m]."""
+
+    mounts: np.ndarray
+    increments: np.ndarray
+    counts: np.ndarray
+    directions: np.ndarray
+    lengths: np.ndarray
+
+
 def _build_gaps() -> SimpleNamespace:
     require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
     from safenav.worlds import _compiled_gaps
 
-    kernels = SimpleNamespace(polygon_gaps=_compiled_gaps.polygon_gaps)
+    kernels = SimpleNamespace(polygon_gaps=_compiled_gaps.polygon_gaps, ray_reach=_compiled_gaps.ray_reach)
     square = np.array([[[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]]])
     sides = box_sides(np.array([[2.0, 0.0, 0.5, 0.5, 1.0, 0.0]]))
-    kernels.polygon_gaps(square, sides.boxes, sides.corners, sides.normals, np.array([[0.0, 2.0, 0.3]]))
+    circles = np.array([[0.0, 2.0, 0.3]])
+    kernels.polygon_gaps(square, sides.boxes, sides.corners, sides.normals, circles)
+    kernels.ray_reach(0.0, 0.0, 0.0, np.zeros((1, 3)), np.array([0.5 * math.pi]), np.array([4], dtype=np.intp),
+                      square[0] / math.sqrt(0.5), np.full(4, 5.0), sides.boxes, circles, 0.01)
     return kernels
 
 
-#: The compiled exact clearance of a convex polygon (:func:`polygon_gaps` with ``compiled=``), for the simulator's
-#: footprint truth (:attr:`safenav.sim_bullet.SimConfig.kernels`).
+#: The simulator's compiled kernels (:attr:`safenav.sim_bullet.SimConfig.kernels`): the exact clearance of a convex
+#: polygon (:func:`polygon_gaps` with ``compiled=``, the footprint truth) and how far each lidar ray must reach
+#: (``ray_reach``, which shortens the rays PyBullet casts).
 COMPILED_GAPS = KernelGroup(_build_gaps, "the simulator measures clearance with numpy (the same values, slower)")

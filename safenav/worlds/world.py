@@ -28,6 +28,7 @@ from safenav.worlds.shapes import (
     BoxSides,
     Cylinder,
     Obstacle,
+    RayFan,
     Wall,
     box_array,
     box_distance,
@@ -155,6 +156,22 @@ class World:
             (minus the penetration depth), ``inf`` in a world without obstacles.
         """
         return polygon_gaps(placed_polygons(poses, footprint), self._box_sides, self._circles, compiled)
+
+    def ray_reach(self, pose: Pose2D, rays: RayFan, compiled: SimpleNamespace, slack: float = 0.01) -> np.ndarray:
+        """How far [m] each ray of a base at ``pose`` must reach to meet the first obstacle it meets, plus ``slack``.
+
+        Args:
+            pose: the base pose [m, m, rad].
+            rays: the lidars' rays in the base frame (:class:`~safenav.worlds.shapes.RayFan`).
+            compiled: the compiled kernels (:data:`~safenav.worlds.shapes.COMPILED_GAPS`).
+            slack: added to each first meeting [m] (the cast a ray of that length makes must meet it).
+
+        Returns:
+            ``(R,)`` per ray the distance to the exact box or circle it first meets plus ``slack``, or its full
+            length when that is shorter, when it meets nothing, or when its lidar sits inside an obstacle.
+        """
+        return compiled.ray_reach(float(pose.x), float(pose.y), float(pose.yaw), rays.mounts, rays.increments,
+                                  rays.counts, rays.directions, rays.lengths, self._boxes, self._circles, float(slack))
 
     def scene(self) -> Scene:
         """The obstacle outlines as a :class:`~safenav.synthetic.Scene` for exact analytic ray casts.

@@ -149,3 +149,41 @@ def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_d
         np.testing.assert_allclose(ours[apart], theirs[apart], atol=1e-12)
         assert not np.any((ours > 0.0) & (theirs <= 0.0))
         assert np.all(ours >= world.signed_distance(poses[:, :2]) - robot.radius - 1e-12)
+
+
+@pytest.mark.parametrize("name", ["rosbot", "puzzlebot", "m2wr"])
+def test_ray_reach_is_where_each_ray_first_meets_an_obstacle(name):
+    """``World.ray_reach`` (the compiled kernel that shortens the simulator's rays) against the analytic ray caster
+    of :mod:`safenav.synthetic` on the same exact boxes and circles: in random worlds, from random poses (a full
+    turn, the ROSbot's backward mount, the m2wr's half turn), every beam that meets something reaches exactly 1 cm
+    past it, every other beam its full length; from inside an obstacle every beam its full length."""
+    pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
+    from safenav.synthetic import cast
+    from safenav.worlds.shapes import COMPILED_GAPS, RayFan
+
+    robot = preset(name)
+    lidar = robot.lidar
+    angles = lidar.scan().angles + lidar.mount.yaw
+    lengths = np.full(lidar.n_beams, lidar.range_max)
+    rays = RayFan(np.array([[lidar.mount.x, lidar.mount.y, angles[0]]]), np.array([lidar.angle_increment]),
+                  np.array([lidar.n_beams], dtype=np.intp), np.column_stack((np.cos(angles), np.sin(angles))), lengths)
+    compiled = COMPILED_GAPS.load()
+    rng = np.random.default_rng(7)
+    hits = inside = 0
+    for seed in range(4):
+        world = random_world(seed, robot, n_obstacles=30)
+        xmin, ymin, xmax, ymax = world.bounds
+        for _ in range(100):
+            pose = Pose2D(rng.uniform(xmin, xmax), rng.uniform(ymin, ymax), rng.uniform(-math.pi, math.pi))
+            reach = world.ray_reach(pose, rays, compiled, slack=0.01)
+            sensor = pose.compose(lidar.mount)
+            if world.signed_distance(np.array([[sensor.x, sensor.y]]))[0] <= 0.0:
+                np.testing.assert_array_equal(reach, lengths)
+                inside += 1
+                continue
+            exact = cast((sensor.x, sensor.y), lidar.scan().angles + sensor.yaw, world.scene())
+            meets = exact + 0.01 < lengths
+            np.testing.assert_allclose(reach[meets], exact[meets] + 0.01, rtol=0.0, atol=1e-9)
+            np.testing.assert_array_equal(reach[~meets], lengths[~meets])
+            hits += int(meets.sum())
+    assert hits > 10000 and inside > 5
