@@ -9,7 +9,9 @@ code and the same ``rayTestBatch`` call with nothing to hit. It measures
 * ``step``: ``BulletSim.step`` (physics step + scan + truth);
 * ``scan``: ``BulletSim.scan`` at the poses the robot visited (one ``rayTestBatch`` and the
   conversion to a ``LaserScan``);
-* ``raw``: the bare ``pybullet.rayTestBatch`` call with world-frame rays from those poses,
+* ``raw``: the bare ``pybullet.rayTestBatch`` call with world-frame rays from those poses, every ray
+  ``range_max`` long (the simulator, with numba's kernels, casts each ray only to just past the obstacle it
+  first meets: the share of rays so shortened, and of those cast again at full length, is printed),
 
 with ``numThreads=1`` (one core) and ``numThreads=0`` (all cores), and the aggregate rate of
 one single-threaded simulator per core running side by side. Times are per call; the table
@@ -106,7 +108,9 @@ def measure(world: World, robot_name: str, threads: int, steps: int, warmup: int
             start = clock()
             bullet.rayTestBatch(ray_from, ray_to, numThreads=threads, physicsClientId=client)
             raw_times.append(clock() - start)
-    return {"step": step_times, "scan": scan_times, "raw": raw_times, "poses": [tuple(p) for p in visited]}
+        counts = dict(sim.ray_counts)
+    return {"step": step_times, "scan": scan_times, "raw": raw_times, "poses": [tuple(p) for p in visited],
+            "rays": counts}
 
 
 def _worker(args: tuple[int, str, int, int, int]) -> list[float]:
@@ -124,6 +128,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     for threads in args.threads:
         label = "1 thread" if threads == 1 else ("all cores" if threads == 0 else f"{threads} threads")
         world_samples: dict[str, list[float]] = {"step": [], "scan": [], "raw": []}
+        rays = {"cast": 0, "shortened": 0, "recast": 0}
         empty_samples: dict[str, list[float]] = {"step": [], "scan": [], "raw": []}
         for seed in seeds:
             world = random_world(seed, robot, n_obstacles=args.obstacles)
@@ -133,11 +138,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             floor = measure(empty, args.robot, threads, args.steps, args.warmup, poses=poses)
             for key in world_samples:
                 world_samples[key].extend(result[key])
+            for key in rays:
+                rays[key] += result["rays"][key]
                 empty_samples[key].extend(floor[key])
         rows[label] = {
             "numThreads": threads,
             "random": {key: _percentiles(values) for key, values in world_samples.items()},
             "empty": {key: _percentiles(values) for key, values in empty_samples.items()},
+            "rays": rays,
         }
         random_stats, empty_stats = rows[label]["random"], rows[label]["empty"]
         rows[label]["steps_per_second"] = 1e3 / random_stats["step"]["median_ms"]
@@ -198,6 +206,12 @@ def print_table(report: dict[str, Any]) -> None:
     throughput = ", ".join(f"{row['throughput_steps_per_second']:.0f} ({label})"
                            for label, row in report["rows"].items())
     print(f"random-world throughput by mean step time (preemption included): {throughput} steps/s")
+    for label, row in report["rows"].items():
+        rays = row["rays"]
+        shortened = rays["shortened"] / max(rays["cast"], 1)
+        recast = rays["recast"] / max(rays["shortened"], 1)
+        print(f"random-world rays ({label}): {rays['cast']} cast by the simulator, {100 * shortened:.1f} % shortened "
+              f"to where they first meet an obstacle, {100 * recast:.2f} % of those cast again at full length")
     parallel = report["parallel"]
     if parallel:
         rates = ", ".join(f"{rate:.0f}" for rate in parallel["per_process_steps_per_second"])

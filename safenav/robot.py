@@ -261,6 +261,11 @@ class _LayoutMatch(NamedTuple):
     """``(cause, message)`` of every contradiction with that lidar."""
 
 
+def _clip(value: float, low: float, high: float) -> float:
+    """``numpy.clip`` of one float: NaN when any argument is NaN."""
+    return min(max(value, low), high) if low <= high else math.nan
+
+
 @dataclass(frozen=True)
 class RobotSpec:
     """A differential-drive robot: body, limits and lidars.
@@ -358,10 +363,6 @@ class RobotSpec:
         """Upper velocity limits ``(v_max, omega_max)`` [m/s, rad/s] (read-only)."""
         return _read_only(np.array([self.v_max, self.omega_max]))
 
-    @functools.cached_property
-    def _accel_step(self) -> np.ndarray:
-        return _read_only(np.array([self.a_max, self.alpha_max]))
-
     def velocity_bounds(self, velocity: Sequence[float] | np.ndarray | None = None,
                         dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Box of commands reachable within one period.
@@ -376,19 +377,28 @@ class RobotSpec:
             the limits: from a current velocity beyond a limit (an odometry glitch, a push),
             the only command left is that limit, which the base approaches as fast as it can.
         """
-        lower, upper = self.lower, self.upper
         if velocity is None or dt is None:
-            return lower, upper
-        current = np.asarray(velocity, dtype=float)
-        step = self._accel_step * dt
-        new_lower = np.clip(current - step, lower, upper)
-        new_upper = np.clip(current + step, lower, upper)
-        return np.minimum(new_lower, new_upper), np.maximum(new_lower, new_upper)
+            return self.lower, self.upper
+        # Two axes in Python floats (called several times a period: numpy's per-call overhead would dominate).
+        v, omega = np.asarray(velocity, dtype=float)
+        limits = self._limits
+        bounds = []
+        for current, step, low, high in ((float(v), self.a_max * dt, *limits[0]),
+                                         (float(omega), self.alpha_max * dt, *limits[1])):
+            new_lower, new_upper = _clip(current - step, low, high), _clip(current + step, low, high)
+            bounds.append((min(new_lower, new_upper), max(new_lower, new_upper)))
+        return np.array([bounds[0][0], bounds[1][0]]), np.array([bounds[0][1], bounds[1][1]])
+
+    @functools.cached_property
+    def _limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (float(self.v_min), float(self.v_max)), (-float(self.omega_max), float(self.omega_max))
 
     def clip(self, u: Any, velocity: Sequence[float] | np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """``u`` clipped to :meth:`velocity_bounds` [m/s, rad/s]."""
         lower, upper = self.velocity_bounds(velocity, dt)
-        return np.clip(as_command(u), lower, upper)
+        v, omega = as_command(u)
+        return np.array([_clip(float(v), float(lower[0]), float(upper[0])),
+                         _clip(float(omega), float(lower[1]), float(upper[1]))])
 
     def brake(self, velocity: Sequence[float] | np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """The command nearest a stop that the acceleration limits allow within ``dt`` [m/s, rad/s]."""

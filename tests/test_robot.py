@@ -74,6 +74,32 @@ def test_velocity_bounds_intersect_limits_with_what_acceleration_allows():
     assert lower.tolist() == [-1.0, -3.0] and upper.tolist() == [1.0, 3.0]
 
 
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_velocity_bounds_and_clip_are_numpys_clip_of_the_acceleration_step(name):
+    """``velocity_bounds`` and ``clip`` (Python floats, for speed) give exactly numpy's ``clip`` of the velocity
+    plus or minus one period's acceleration to the limits, bit for bit, on random velocities, periods and commands,
+    NaN and infinities included."""
+    robot = preset(name)
+    rng = np.random.default_rng(1)
+    step_per_second = np.array([robot.a_max, robot.alpha_max])
+    for _ in range(5000):
+        velocity = rng.normal(0.0, 2.0, 2) * rng.choice([0.1, 1.0, 5.0])
+        if rng.random() < 0.05:
+            velocity[rng.integers(2)] = rng.choice([np.nan, np.inf, -np.inf])
+        dt = float(rng.choice([0.01, 0.05, 0.1, 1.0]))
+        low = np.clip(velocity - step_per_second * dt, robot.lower, robot.upper)
+        high = np.clip(velocity + step_per_second * dt, robot.lower, robot.upper)
+        expected = np.minimum(low, high), np.maximum(low, high)
+        bounds = robot.velocity_bounds(velocity, dt)
+        for got, want in zip(bounds, expected, strict=True):
+            np.testing.assert_array_equal(got, want)
+        command = rng.normal(0.0, 2.0, 2)
+        if rng.random() < 0.05:
+            command[rng.integers(2)] = np.nan
+        np.testing.assert_array_equal(robot.clip(command, velocity, dt), np.clip(command, *expected))
+        np.testing.assert_array_equal(robot.clip(command), np.clip(command, robot.lower, robot.upper))
+
+
 def test_velocity_bounds_from_outside_the_limits_stay_inside_them():
     robot = preset("rosbot")
     lower, upper = robot.velocity_bounds((2.0, 0.0), dt=0.1)
