@@ -138,9 +138,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             floor = measure(empty, args.robot, threads, args.steps, args.warmup, poses=poses)
             for key in world_samples:
                 world_samples[key].extend(result[key])
+                empty_samples[key].extend(floor[key])
             for key in rays:
                 rays[key] += result["rays"][key]
-                empty_samples[key].extend(floor[key])
         rows[label] = {
             "numThreads": threads,
             "random": {key: _percentiles(values) for key, values in world_samples.items()},
