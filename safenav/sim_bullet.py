@@ -42,17 +42,16 @@ Model, and why:
   the collision is recorded. The robot's PyBullet body has a visual shape and no collision
   shape, so rays never hit it.
 * **Lidars**: every lidar of ``robot.lidars`` (the main one, then
-  :attr:`~safenav.robot.RobotSpec.extra_lidars`), all cast in one ``rayTestBatch`` per
-  period, in the frame of the robot body, each from its true mount (``lidar.mount`` with
-  ``SimConfig.mount_yaw_error`` added to its yaw) at its ``lidar.height``, one ray per beam,
-  ``range_max`` long (with the compiled kernels, ``SimConfig.kernels``, a static world's rays are cast only
-  to 1 cm past the exact box or circle each first meets, and again at full length when that misses: the
-  same hits, their ranges to rounding, about a quarter less time). Hits closer than ``range_min`` read
-  ``-inf``, no hit reads ``+inf`` (REP-117); a sensor inside an obstacle reads ``-inf`` on every beam. All beams of all
-  lidars are cast at the same instant (no motion distortion). Each scan is returned in its
-  lidar's own convention (:meth:`~safenav.robot.LidarSpec.scan`), with the *nominal* mount
-  and the lidar's ``frame_id``: :attr:`SimState.scans` holds them all (main first),
-  :attr:`SimState.scan` the main lidar's.
+  :attr:`~safenav.robot.RobotSpec.extra_lidars`), all cast in one ``rayTestBatch`` per period, in the frame of
+  the robot body, each from its true mount (``lidar.mount`` with ``SimConfig.mount_yaw_error`` added to its
+  yaw) at its ``lidar.height``, one ray per beam, ``range_max`` long (with the compiled kernels,
+  ``SimConfig.kernels``, a static world's rays are cast only to 1 cm past the exact box or circle each first
+  meets, and again at full length when that misses: the same hits, their ranges to rounding, about 28 % less
+  time a scan in cluttered worlds). Hits closer than ``range_min`` read ``-inf``, no hit reads ``+inf``
+  (REP-117); a sensor inside an obstacle reads ``-inf`` on every beam. All beams of all lidars are cast at the
+  same instant (no motion distortion). Each scan is returned in its lidar's own convention
+  (:meth:`~safenav.robot.LidarSpec.scan`), with the *nominal* mount and the lidar's ``frame_id``:
+  :attr:`SimState.scans` holds them all (main first), :attr:`SimState.scan` the main lidar's.
 * **Truth**: the body clearance is exact and analytic (:meth:`World.clearance
   <safenav.worlds.World.clearance>` on the true circles and rectangles), evaluated at
   every physics step for the first-collision time. The body is the robot's convex footprint,
@@ -268,7 +267,10 @@ class SimConfig:
         kernels: how the footprint's exact clearance is computed, and how far the rays are cast:
             ``"auto"`` (default: numba's compiled loops when numba is installed, ``pip install "safenav[fast]"``;
             ``SAFENAV_KERNELS=numpy`` or ``numba`` decides for a whole process), ``"numba"`` or ``"numpy"`` (the
-            reference: full-length rays); the same values, the ranges to rounding.
+            reference: full-length rays); the same clearances, the same hits, the ranges to Bullet's rounding
+            (3e-13 m measured). A closed loop amplifies such differences: an episode driven by a filter is the
+            same for the same seed and setting, and its continuous outcomes (rarely a discrete one) may differ
+            between the two settings.
     """
 
     control_dt: float = 0.05
