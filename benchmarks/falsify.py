@@ -367,7 +367,7 @@ def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.ra
         ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
     ranges[ranges > lidar.range_max] = math.inf
     ranges[ranges < lidar.range_min] = -math.inf
-    return template.with_ranges(ranges).replace(stamp=stamp)
+    return template.with_ranges(ranges, stamp=stamp)
 
 
 def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:

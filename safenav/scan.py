@@ -197,6 +197,9 @@ class _UnstatedMount(Pose2D):
 
 
 _UNSTATED_MOUNT = _UnstatedMount()
+_UNCHANGED = object()   # LaserScan.with_ranges: the stamp stays
+_NO_INTENSITIES = np.empty(0)
+_NO_INTENSITIES.flags.writeable = False
 
 
 def _is_unstated(mount: Any) -> bool:
@@ -521,9 +524,31 @@ class LaserScan:
         return cls(**values, mount=mount, stamp=stamp, frame_id=frame_id if isinstance(frame_id, str) else "laser",
                    no_return=no_return)
 
-    def with_ranges(self, ranges: Any, intensities: Any = ()) -> LaserScan:
-        """A scan with the same layout and new readings (validated)."""
-        return dataclasses.replace(self, ranges=ranges, intensities=intensities)
+    def with_ranges(self, ranges: Any, intensities: Any = (), *, stamp: Any = _UNCHANGED) -> LaserScan:
+        """A scan with the same layout and new readings (validated), stamped ``stamp`` [s] when given.
+
+        Only what changes is validated (the layout was when this scan was built), so the call costs a few
+        microseconds (the simulator makes every scan so).
+
+        Raises:
+            InvalidScanType: ``ranges`` or ``intensities`` is not a 1-D sequence of real numbers.
+            InvalidScan: ``ranges`` does not hold one value per beam of this layout, or ``intensities`` neither
+                that nor none.
+        """
+        values = _real_array("ranges", ranges)
+        n = self.n_beams
+        if values.size != n:
+            raise InvalidScan(f"ranges has {values.size} values; expected {n}, one per beam of this scan's layout "
+                              f"(angle_min={self.angle_min!r}, angle_increment={self.angle_increment!r})")
+        extra = {} if stamp is _UNCHANGED else {"stamp": stamp_seconds(stamp)}
+        if not (isinstance(intensities, tuple) and not intensities):
+            intensities = _real_array("intensities", intensities)
+            if intensities.size not in (0, n):
+                raise InvalidScan(f"intensities has {intensities.size} values; expected 0 or {n} (one per range)")
+        else:
+            intensities = _NO_INTENSITIES
+        return self._copy_with(ranges=_mark_no_returns(values, self.no_return, self.range_max),
+                               intensities=intensities, derived_from_ranges=True, **extra)
 
     def replace(self, **changes: Any) -> LaserScan:
         """A copy with some fields changed (validated), as :func:`dataclasses.replace`.

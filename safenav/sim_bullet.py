@@ -206,6 +206,8 @@ class _CastLidar(NamedTuple):
     in_footprint: bool
     """Whether the lidar lies inside the footprint the truth measures (then, with the footprint clear of every
     obstacle, so is the lidar)."""
+    template: LaserScan
+    """Its scan layout (``lidar.scan()``), validated once: every scan is this with new readings."""
 
 
 def _inside_convex(polygon: np.ndarray, point: tuple[float, float]) -> bool:
@@ -518,6 +520,7 @@ class BulletSim:
                 mount_offset=math.hypot(mount.x, mount.y),
                 range_noise=lidar.noise_std if self.config.range_noise is None else self.config.range_noise,
                 in_footprint=self._footprint is not None and _inside_convex(self._footprint, (mount.x, mount.y)),
+                template=lidar.scan(),
             ))
         self._ray_from, self._ray_to, self._cast_lidars = starts, ends, tuple(cast)
         self._ray_starts = np.array(starts, dtype=float).reshape(-1, 3)
@@ -762,7 +765,7 @@ class BulletSim:
         ranges[ranges < lidar.range_min] = -math.inf
         if self.config.dropout > 0.0:
             ranges[rng.random(n) < self.config.dropout] = math.nan
-        return lidar.scan(ranges, stamp=stamp)
+        return cast.template.with_ranges(ranges, stamp=stamp)
 
     def _sensor_inside(self, cast: _CastLidar, pose: Pose2D, clearance: float | None, time: float) -> bool:
         """Whether the lidar sits inside an obstacle at ``time`` (only possible when the body overlaps one)."""

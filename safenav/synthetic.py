@@ -170,4 +170,4 @@ def synthetic_scan(
         ranges[finite] += rng.normal(0.0, noise_std, int(finite.sum()))
     ranges[ranges > lidar.range_max] = math.inf
     ranges[ranges < lidar.range_min] = -math.inf
-    return template.with_ranges(ranges).replace(stamp=stamp)
+    return template.with_ranges(ranges, stamp=stamp)

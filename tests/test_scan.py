@@ -543,3 +543,41 @@ def test_no_return_applies_to_new_readings_and_can_be_stated_once():
         zeros.with_no_return("range_max")
     with pytest.raises(UnknownName, match="unknown no_return convention 'zeros'; expected one of: range_max, zero"):
         make_scan(no_return="zeros")
+
+
+@pytest.mark.parametrize("no_return", [None, "zero", "range_max"])
+def test_with_ranges_is_the_scan_built_afresh(no_return):
+    """``with_ranges`` (which validates only the readings) gives the scan the constructor builds from the same layout:
+    the same fields, readings and points, for clockwise and counter-clockwise layouts, stated and unstated mounts,
+    a new stamp or the old one, with and without intensities; the caches of the old readings are not kept, and a
+    wrong count or a bad value is named."""
+    rng = np.random.default_rng(4)
+    for increment, mount in ((np.pi / 90, (0.1, 0.0, np.pi)), (-np.pi / 90, None)):
+        n = 181
+        start = -np.pi / 2 if increment > 0 else np.pi / 2
+        template = LaserScan(angle_min=start, angle_max=start + (n - 1) * increment, angle_increment=increment,
+                             ranges=np.full(n, 2.0), range_min=0.1, range_max=8.0, mount=mount, stamp=1.5,
+                             no_return=no_return)
+        template.readings, template.n_informative   # noqa: B018  (caches of the old readings)
+        for stamp in (None, 2.25, "keep"):
+            ranges = rng.choice([0.0, 0.05, 1.0, 3.0, 8.0, 9.0, np.inf, -np.inf, np.nan], n)
+            intensities = rng.uniform(0.0, 1.0, n) if stamp is None else ()
+            kwargs = {} if stamp == "keep" else {"stamp": stamp}
+            fast = template.with_ranges(ranges, intensities, **kwargs)
+            built = LaserScan(angle_min=template.angle_min, angle_max=template.angle_max,
+                              angle_increment=template.angle_increment, ranges=ranges, intensities=intensities,
+                              range_min=0.1, range_max=8.0, mount=template.mount if mount else None,
+                              stamp=1.5 if stamp == "keep" else stamp, no_return=no_return)
+            for name in ("angle_min", "angle_max", "angle_increment", "range_min", "range_max", "stamp", "mount",
+                         "no_return", "mount_given", "n_informative"):
+                assert getattr(fast, name) == getattr(built, name), name
+            for name in ("ranges", "intensities", "readings", "base_angles"):
+                np.testing.assert_array_equal(getattr(fast, name), getattr(built, name))
+            np.testing.assert_array_equal(fast.points(), built.points())
+            assert not fast.ranges.flags.writeable and not fast.intensities.flags.writeable
+        with pytest.raises(InvalidScan, match="180 values; expected 181"):
+            template.with_ranges(np.ones(180))
+        with pytest.raises(InvalidScan, match="intensities has 3 values"):
+            template.with_ranges(np.ones(n), [1.0, 2.0, 3.0])
+        with pytest.raises(InvalidScanType, match="ranges"):
+            template.with_ranges(["a"] * n)
