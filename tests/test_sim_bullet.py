@@ -518,6 +518,10 @@ def test_rays_cast_only_as_far_as_they_must_reach_read_as_full_rays(monkeypatch,
         assert counts["recast"] > 0.5 * counts["shortened"], counts
     else:
         assert counts["recast"] < 0.02 * counts["shortened"], counts
+    from safenav.worlds.shapes import COMPILED_GAPS
+
+    compiled = COMPILED_GAPS.load()   # compiled once, when built, for the types the simulator passes
+    assert len(compiled.ray_reach.signatures) == 1 and len(compiled.polygon_gaps.signatures) == 1
 
 
 def test_actuation_noise_is_relative_and_seeded():
