@@ -421,9 +421,12 @@ class BulletSim:
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
         self._footprint = _truth_footprint(robot, config.truth)
-        self._gap_kernels = COMPILED_GAPS.select(config.kernels) if self._footprint is not None else None
-        # Rays shortened to just past what they first meet (compiled only; the same hits, see _short_rays).
-        self._ray_kernels = COMPILED_GAPS.select(config.kernels) if world.obstacles and not self._movers else None
+        # The footprint's exact clearance, and rays shortened to just past what they first meet (see _short_rays):
+        # compiled when the setting selects numba's kernels.
+        shortened = bool(world.obstacles) and not self._movers
+        compiled = COMPILED_GAPS.select(config.kernels) if self._footprint is not None or shortened else None
+        self._gap_kernels = compiled if self._footprint is not None else None
+        self._ray_kernels = compiled if shortened else None
         self.ray_counts = {"cast": 0, "shortened": 0, "recast": 0}
         """Rays cast so far, how many of them shortened to where they first meet an obstacle, and how many of those
         cast again at full length (:meth:`_short_rays`)."""
@@ -432,7 +435,7 @@ class BulletSim:
         self._probe = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=robot.radius,
                                                     physicsClientId=self._client)
         self._build_rays()
-        self._last_cast: tuple[Pose2D | None, np.ndarray] = (None, np.ones(len(self._ray_from)))
+        self._last_cast: tuple[Pose2D | None, np.ndarray] = (None, np.ones(len(self._ray_starts)))
         if config.gui:
             self._set_up_gui()
         self._state: SimState | None = None
@@ -508,8 +511,8 @@ class BulletSim:
         """Ray end points in the robot body frame, every lidar's through its true mount, one per beam."""
         starts, ends, cast = [], [], []
         for lidar in self.robot.lidars:
-            mount, first = lidar.mount, len(starts)
-            directions = lidar.scan().angles + mount.yaw + self.config.mount_yaw_error
+            mount, first, template = lidar.mount, len(starts), lidar.scan()
+            directions = template.angles + mount.yaw + self.config.mount_yaw_error
             starts += [[mount.x, mount.y, lidar.height]] * lidar.n_beams
             ends += np.column_stack((mount.x + lidar.range_max * np.cos(directions),
                                      mount.y + lidar.range_max * np.sin(directions),
@@ -520,11 +523,12 @@ class BulletSim:
                 mount_offset=math.hypot(mount.x, mount.y),
                 range_noise=lidar.noise_std if self.config.range_noise is None else self.config.range_noise,
                 in_footprint=self._footprint is not None and _inside_convex(self._footprint, (mount.x, mount.y)),
-                template=lidar.scan(),
+                template=template,
             ))
-        self._ray_from, self._ray_to, self._cast_lidars = starts, ends, tuple(cast)
+        self._cast_lidars = tuple(cast)
         self._ray_starts = np.array(starts, dtype=float).reshape(-1, 3)
-        along = np.array(ends, dtype=float).reshape(-1, 3)[:, :2] - self._ray_starts[:, :2]
+        self._ray_ends = np.array(ends, dtype=float).reshape(-1, 3)
+        along = self._ray_ends[:, :2] - self._ray_starts[:, :2]
         lengths = np.hypot(along[:, 0], along[:, 1])
         self._rays = RayFan(
             mounts=np.array([(c.true_mount.x, c.true_mount.y, c.lidar.angle_min + c.true_mount.yaw) for c in cast]),
@@ -702,7 +706,7 @@ class BulletSim:
                                                  [0.0, 0.0, math.sin(half_yaw), math.cos(half_yaw)],
                                                  physicsClientId=self._client)
         if self._ray_kernels is None:
-            fractions = self._ray_batch(self._ray_from, self._ray_to)
+            fractions = self._ray_batch(self._ray_starts, self._ray_ends)
             self.ray_counts["cast"] += fractions.size
         else:
             fractions = self._short_rays(pose)
@@ -736,9 +740,7 @@ class BulletSim:
         counts["shortened"] += int(np.count_nonzero(shortened))
         counts["recast"] += int(np.count_nonzero(missed))
         if missed.any():
-            ends = self._ray_starts[missed].copy()
-            ends[:, :2] += rays.directions[missed] * lengths[missed, None]
-            fractions[missed] = self._ray_batch(self._ray_starts[missed], ends)
+            fractions[missed] = self._ray_batch(self._ray_starts[missed], self._ray_ends[missed])
         return fractions
 
     def _ray_batch(self, starts: Any, ends: Any) -> np.ndarray:

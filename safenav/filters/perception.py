@@ -857,10 +857,10 @@ def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, unce
 def _seen_again_compiled(compiled: Any, scan: LaserScan, points: np.ndarray, tolerance: np.ndarray,
                          uncertainty: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_seen_again` by the compiled kernel ``compiled.seen_again`` (the same masks and points)."""
-    mount, n, increment = scan.mount, scan.n_beams, scan.angle_increment
+    mount, view = scan.mount, scan.field_of_view
     return compiled.seen_again(frozen(scan.ranges), frozen(scan.readings), _HIT, _NO_RETURN, float(scan.range_max),
-                               float(scan.angle_min), float(increment), float(mount.x), float(mount.y),
-                               float(mount.yaw), bool(n * increment >= TWO_PI - 1e-9), bool(n * increment >= math.pi),
+                               float(scan.angle_min), float(scan.angle_increment), float(mount.x), float(mount.y),
+                               float(mount.yaw), bool(view >= TWO_PI - 1e-9), bool(view >= math.pi),
                                plain(points), plain(tolerance), plain(uncertainty))
 
 

@@ -99,28 +99,25 @@ def _circle_entry(ox, oy, ux, uy, cx, cy, radius):
 
 
 @_jit
+def _slab(position, velocity, half, enter, leave):
+    """The times ``[enter, leave]`` narrowed to when ``|position + t velocity| <= half`` (empty: ``enter > leave``)."""
+    if velocity == 0.0:
+        return (enter, leave) if abs(position) <= half else (np.inf, -np.inf)
+    near, far = (-half - position) / velocity, (half - position) / velocity
+    return max(enter, min(near, far)), min(leave, max(near, far))
+
+
+@_jit
 def _box_entry(ox, oy, ux, uy, box):
     """Where the ray from ``o`` along the unit ``u`` enters the box (a row of ``shapes.box_array``; ``inf``: it
     does not; ``-1``: it starts inside)."""
     dx, dy = ox - box[0], oy - box[1]
     cb, sb, hx, hy = box[4], box[5], box[2], box[3]
     lx, ly = cb * dx + sb * dy, -sb * dx + cb * dy
-    vx, vy = cb * ux + sb * uy, -sb * ux + cb * uy
     if abs(lx) <= hx and abs(ly) <= hy:
         return -1.0
-    enter, leave = -np.inf, np.inf
-    if vx == 0.0:
-        if abs(lx) > hx:
-            return np.inf
-    else:
-        near, far = (-hx - lx) / vx, (hx - lx) / vx
-        enter, leave = max(enter, min(near, far)), min(leave, max(near, far))
-    if vy == 0.0:
-        if abs(ly) > hy:
-            return np.inf
-    else:
-        near, far = (-hy - ly) / vy, (hy - ly) / vy
-        enter, leave = max(enter, min(near, far)), min(leave, max(near, far))
+    enter, leave = _slab(lx, cb * ux + sb * uy, hx, -np.inf, np.inf)
+    enter, leave = _slab(ly, -sb * ux + cb * uy, hy, enter, leave)
     return enter if 0.0 <= enter <= leave else np.inf
 
 

@@ -388,4 +388,5 @@ def _build_gaps() -> SimpleNamespace:
 #: The simulator's compiled kernels (:attr:`safenav.sim_bullet.SimConfig.kernels`): the exact clearance of a convex
 #: polygon (:func:`polygon_gaps` with ``compiled=``, the footprint truth) and how far each lidar ray must reach
 #: (``ray_reach``, which shortens the rays PyBullet casts).
-COMPILED_GAPS = KernelGroup(_build_gaps, "the simulator measures clearance with numpy (the same values, slower)")
+COMPILED_GAPS = KernelGroup(_build_gaps, "the simulator measures clearance with numpy and casts full-length rays "
+                                         "(the same values, slower)")
