@@ -70,11 +70,7 @@ def period_velocities(model: str, robot: RobotSpec, start: np.ndarray, command: 
     command = np.asarray(command, dtype=float)
     h = period / substeps
     if model == "ramp_limit":
-        ends = np.empty((substeps, 2))
-        velocity = start
-        for k in range(substeps):
-            velocity = robot.clip(command, velocity, h)
-            ends[k] = velocity
+        ends = robot.ramp(command, start, h, substeps)
         return ends, ends.copy()
     if model == "instant":
         ends = np.tile(command, (substeps, 1))

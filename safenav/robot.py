@@ -379,15 +379,19 @@ class RobotSpec:
         """
         if velocity is None or dt is None:
             return self.lower, self.upper
-        # Two axes in Python floats (called several times a period: numpy's per-call overhead would dominate).
         v, omega = np.asarray(velocity, dtype=float)
-        limits = self._limits
-        bounds = []
-        for current, step, low, high in ((float(v), self.a_max * dt, *limits[0]),
-                                         (float(omega), self.alpha_max * dt, *limits[1])):
-            new_lower, new_upper = _clip(current - step, low, high), _clip(current + step, low, high)
-            bounds.append((min(new_lower, new_upper), max(new_lower, new_upper)))
-        return np.array([bounds[0][0], bounds[1][0]]), np.array([bounds[0][1], bounds[1][1]])
+        v_low, v_high, omega_low, omega_high = self._bounds(float(v), float(omega), dt)
+        return np.array([v_low, omega_low]), np.array([v_high, omega_high])
+
+    def _bounds(self, v: float, omega: float, dt: float) -> tuple[float, float, float, float]:
+        """:meth:`velocity_bounds` from ``(v, omega)`` in Python floats (called several times a period: numpy's
+        per-call overhead would dominate): ``(v_low, v_high, omega_low, omega_high)``."""
+        (v_min, v_max), (omega_min, omega_max) = self._limits
+        step = self.a_max * dt
+        v_low, v_high = _clip(v - step, v_min, v_max), _clip(v + step, v_min, v_max)
+        step = self.alpha_max * dt
+        omega_low, omega_high = _clip(omega - step, omega_min, omega_max), _clip(omega + step, omega_min, omega_max)
+        return min(v_low, v_high), max(v_low, v_high), min(omega_low, omega_high), max(omega_low, omega_high)
 
     @functools.cached_property
     def _limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -395,10 +399,29 @@ class RobotSpec:
 
     def clip(self, u: Any, velocity: Sequence[float] | np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """``u`` clipped to :meth:`velocity_bounds` [m/s, rad/s]."""
-        lower, upper = self.velocity_bounds(velocity, dt)
+        if velocity is None or dt is None:
+            (v_low, v_high), (omega_low, omega_high) = self._limits
+        else:
+            current_v, current_omega = np.asarray(velocity, dtype=float)
+            v_low, v_high, omega_low, omega_high = self._bounds(float(current_v), float(current_omega), dt)
         v, omega = as_command(u)
-        return np.array([_clip(float(v), float(lower[0]), float(upper[0])),
-                         _clip(float(omega), float(lower[1]), float(upper[1]))])
+        return np.array([_clip(float(v), v_low, v_high), _clip(float(omega), omega_low, omega_high)])
+
+    def ramp(self, command: Any, velocity: Sequence[float] | np.ndarray, dt: float, steps: int) -> np.ndarray:
+        """The velocity after each of ``steps`` steps of ``dt`` [s] from ``velocity`` towards ``command``, each step
+        :meth:`clip` of ``command`` from the last (tracking at the acceleration limits) [m/s, rad/s].
+
+        Returns:
+            ``(steps, 2)``: row ``k`` is ``clip(command, row k - 1, dt)``, row ``-1`` being ``velocity``.
+        """
+        v, omega = (float(value) for value in as_command(command))
+        current_v, current_omega = (float(value) for value in as_command(velocity, "velocity"))
+        rows = []
+        for _ in range(steps):
+            v_low, v_high, omega_low, omega_high = self._bounds(current_v, current_omega, dt)
+            current_v, current_omega = _clip(v, v_low, v_high), _clip(omega, omega_low, omega_high)
+            rows.append((current_v, current_omega))
+        return np.array(rows, dtype=float).reshape(steps, 2)
 
     def brake(self, velocity: Sequence[float] | np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
         """The command nearest a stop that the acceleration limits allow within ``dt`` [m/s, rad/s]."""

@@ -198,6 +198,9 @@ class _UnstatedMount(Pose2D):
 
 _UNSTATED_MOUNT = _UnstatedMount()
 _UNCHANGED = object()   # LaserScan.with_ranges: the stamp stays
+#: LaserScan.sector's beams and coverage per (layout, sector), at most _SECTORS_KEPT of them.
+_SECTORS: dict[tuple[float, ...], tuple[np.ndarray, float]] = {}
+_SECTORS_KEPT = 1024
 _NO_INTENSITIES = np.empty(0)
 _NO_INTENSITIES.flags.writeable = False
 
@@ -745,13 +748,20 @@ class LaserScan:
         the 90 degrees behind. A sector with no informative beam is ``UNKNOWN``,
         never ``FREE``.
         """
-        mask = self.sector_mask(lo, hi)
-        readings = self.readings[mask]
+        # The beams and the coverage depend on the layout alone: kept per layout and sector (a policy asks for
+        # the same few sectors of every scan).
+        key = (self.angle_min, self.angle_increment, self.n_beams, self.mount.yaw, lo, hi)
+        layout = _SECTORS.get(key)
+        if layout is None:
+            if len(_SECTORS) >= _SECTORS_KEPT:
+                _SECTORS.clear()
+            layout = _SECTORS[key] = (np.flatnonzero(self.sector_mask(lo, hi)), self.coverage(lo, hi))
+        beams, coverage = layout
+        readings = self.readings[beams]
         n_beams = int(readings.size)
-        informative = readings != Reading.INVALID
-        n_informative = int(np.count_nonzero(informative))
+        n_informative = n_beams - int(np.count_nonzero(readings == Reading.INVALID))
         n_too_close = int(np.count_nonzero(readings == Reading.TOO_CLOSE))
-        hits = self.ranges[mask][readings == Reading.HIT]
+        hits = self.ranges[beams][readings == Reading.HIT]
         if n_too_close:
             min_range, state = self.range_min, SectorState.OBSTACLE
         elif hits.size:
@@ -760,7 +770,7 @@ class LaserScan:
             min_range, state = math.inf, SectorState.FREE
         else:
             min_range, state = math.nan, SectorState.UNKNOWN
-        return SectorReading(min_range, state, n_beams, n_informative, n_too_close, self.coverage(lo, hi))
+        return SectorReading(min_range, state, n_beams, n_informative, n_too_close, coverage)
 
     def __repr__(self) -> str:
         counts = np.bincount(self.readings, minlength=len(Reading))

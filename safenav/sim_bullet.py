@@ -535,6 +535,8 @@ class BulletSim:
             increments=np.array([c.lidar.angle_increment for c in cast]),
             counts=np.array([c.lidar.n_beams for c in cast], dtype=np.intp),
             directions=np.ascontiguousarray(along / lengths[:, None]), lengths=lengths)
+        # The rays' directions in three dimensions (horizontal), for a shortened ray's end point.
+        self._ray_directions = np.column_stack((self._rays.directions, np.zeros(len(lengths))))
 
     def _set_up_gui(self) -> None:
         pybullet, client = self._bullet, self._client
@@ -730,8 +732,8 @@ class BulletSim:
         lengths = rays.lengths
         reach = self.world.ray_reach(pose, rays, self._ray_kernels)
         shortened = reach < lengths
-        ends = self._ray_starts.copy()
-        ends[:, :2] += rays.directions * reach[:, None]
+        ends = self._ray_directions * reach[:, None]
+        ends += self._ray_starts
         fractions = self._ray_batch(self._ray_starts, ends)
         missed = shortened & (fractions >= 1.0)
         fractions = np.where(shortened, fractions * reach / lengths, fractions)

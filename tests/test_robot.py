@@ -100,6 +100,27 @@ def test_velocity_bounds_and_clip_are_numpys_clip_of_the_acceleration_step(name)
         np.testing.assert_array_equal(robot.clip(command), np.clip(command, robot.lower, robot.upper))
 
 
+@pytest.mark.parametrize("name", ["rosbot", "m2wr"])
+def test_ramp_is_clip_step_after_step(name):
+    """``ramp`` (the simulator's base at its acceleration limits, in Python floats) is ``clip`` applied step after
+    step, bit for bit, from velocities inside and beyond the limits, NaN included; bad input is named."""
+    robot = preset(name)
+    rng = np.random.default_rng(2)
+    for _ in range(500):
+        velocity = rng.normal(0.0, 1.5, 2)
+        command = rng.normal(0.0, 1.5, 2)
+        if rng.random() < 0.05:
+            command[rng.integers(2)] = np.nan
+        dt, steps = float(rng.choice([0.001, 0.01, 0.05])), int(rng.integers(1, 12))
+        expected, current = [], velocity
+        for _ in range(steps):
+            current = robot.clip(command, current, dt)
+            expected.append(current)
+        np.testing.assert_array_equal(robot.ramp(command, velocity, dt, steps), np.array(expected))
+    with pytest.raises(InvalidCommand, match="velocity"):
+        robot.ramp((0.1, 0.0), (0.0, 0.0, 0.0), 0.01, 3)
+
+
 def test_velocity_bounds_from_outside_the_limits_stay_inside_them():
     robot = preset("rosbot")
     lower, upper = robot.velocity_bounds((2.0, 0.0), dt=0.1)

@@ -190,6 +190,45 @@ def test_sector_wrapping_through_pi_and_partial_coverage():
     assert rosbot.coverage(3.0, -3.0) == 1.0
 
 
+def test_sector_is_the_masked_beams_of_every_scan_of_any_layout():
+    """``sector`` (whose beams and coverage are kept per layout and sector) reads exactly the beams of
+    ``sector_mask`` of each scan and its ``coverage``: scans of random layouts (clockwise, partial and full
+    turns, any mount yaw) asked for the same sectors again with other readings, and layouts that differ only in
+    the mount's yaw or the first angle."""
+    rng = np.random.default_rng(5)
+    layouts = []
+    for _ in range(12):
+        n = int(rng.integers(4, 400))
+        increment = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 1.0) * 2.0 * math.pi / n)
+        angle_min = float(rng.uniform(-math.pi, math.pi) if increment > 0.0 else rng.uniform(0.5, math.pi - 0.2))
+        mount = Pose2D(0.1, 0.0, float(rng.uniform(-math.pi, math.pi)))
+        layouts += [(angle_min, increment, n, mount), (angle_min, increment, n, Pose2D(0.1, 0.0, mount.yaw + 0.3)),
+                    (angle_min + 0.2, increment, n, mount)]
+    sectors = [tuple(float(v) for v in rng.uniform(-4.0, 4.0, 2)) for _ in range(10)] + [(-0.26, 0.26), (1.0, 1.0)]
+    for _ in range(3):
+        for angle_min, increment, n, mount in layouts:
+            ranges = rng.uniform(0.0, 12.0, n)
+            ranges[rng.random(n) < 0.2] = rng.choice([math.inf, -math.inf, math.nan])
+            angle_max = angle_min + increment * (n - 1)
+            scan = LaserScan(ranges=ranges, angle_min=angle_min, angle_max=angle_max, angle_increment=increment,
+                             range_min=0.1, range_max=10.0, mount=mount)
+            for lo, hi in sectors:
+                got = scan.sector(lo, hi)
+                mask = scan.sector_mask(lo, hi)
+                readings, values = scan.readings[mask], scan.ranges[mask]
+                hits = values[readings == Reading.HIT]
+                assert got.n_beams == int(mask.sum())
+                assert got.n_informative == int(np.count_nonzero(readings != Reading.INVALID))
+                assert got.n_too_close == int(np.count_nonzero(readings == Reading.TOO_CLOSE))
+                assert got.coverage == scan.coverage(lo, hi)
+                if got.n_too_close:
+                    assert got.min_range == scan.range_min
+                elif hits.size:
+                    assert got.min_range == hits.min()
+                else:
+                    assert got.min_range == math.inf if got.n_informative else math.isnan(got.min_range)
+
+
 # ------------------------------------------------------------------ validation
 
 BAD_SCANS = [

@@ -535,3 +535,24 @@ def plan_check(commands, velocity, rho, beta, dt, coast, offsets, points, guaran
             clearance = min(clearance, gap - guaranteed[i, d])
             planned = min(planned, gap - radii[i, d])
     return limits, clearance, planned, gaps, poses, velocities
+
+
+@_jit
+def inside_polygon(polygon, points):
+    """body.inside_polygon: the even-odd rule of every point in the polygon's bounding box, edge by edge."""
+    count, corners = points.shape[0], polygon.shape[0]
+    low_x, low_y = polygon[:, 0].min(), polygon[:, 1].min()
+    high_x, high_y = polygon[:, 0].max(), polygon[:, 1].max()
+    inside = np.zeros(count, dtype=np.bool_)
+    for i in range(count):
+        x, y = points[i, 0], points[i, 1]
+        if not (low_x <= x <= high_x and low_y <= y <= high_y):
+            continue
+        crossings = 0
+        for v in range(corners):
+            ax, ay = polygon[v, 0], polygon[v, 1]
+            bx, by = polygon[(v + 1) % corners, 0], polygon[(v + 1) % corners, 1]
+            if (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay):
+                crossings += 1
+        inside[i] = crossings % 2 == 1
+    return inside

@@ -340,6 +340,46 @@ def test_the_compiled_plan_check_is_the_numpy_check(data):
         assert check.limits == math.inf and check.clearance == check.planned == -math.inf
 
 
+def test_the_compiled_polygon_test_is_the_numpy_one():
+    """The zones' compiled even-odd test gives ``body.inside_polygon``'s mask exactly: random convex and concave
+    polygons either way round (horizontal and vertical edges, repeated vertices), points anywhere in and around
+    them, on their vertices and on their edges; and the zones filter decides the same on random scans either
+    way."""
+    from safenav.filters import ZonesFilter
+    from safenav.filters.body import inside_polygon
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(4)
+    inside_count = 0
+    for trial in range(400):
+        corners = int(rng.integers(3, 40))
+        angles = np.sort(rng.uniform(0.0, 2.0 * math.pi, corners))
+        radii = rng.uniform(0.2, 1.0, corners) if trial % 2 else np.full(corners, rng.uniform(0.2, 1.0))
+        polygon = np.column_stack((radii * np.cos(angles), radii * np.sin(angles))) + rng.normal(0.0, 0.3, 2)
+        if trial % 5 == 0:
+            polygon = np.round(polygon, 1)          # horizontal and vertical edges, repeated vertices
+        if trial % 3 == 0:
+            polygon = polygon[::-1].copy()
+        edge = rng.integers(0, corners, 60)
+        edges = polygon[edge] + rng.random((60, 1)) * (np.roll(polygon, -1, axis=0)[edge] - polygon[edge])
+        points = np.vstack((rng.uniform(-1.8, 1.8, (300, 2)), polygon, edges, np.round(rng.uniform(-1, 1, (40, 2)), 1)))
+        want = inside_polygon(polygon, points)
+        np.testing.assert_array_equal(compiled.inside_polygon(polygon, points), want)
+        inside_count += int(want.sum())
+    assert inside_count > 10_000
+    robot = preset("rosbot")
+    for use_footprint in (False, True):
+        fast = ZonesFilter(robot, 0.05, kernels="numba", use_footprint=use_footprint)
+        reference = ZonesFilter(robot, 0.05, kernels="numpy", use_footprint=use_footprint)
+        assert fast._kernels is not None and reference._kernels is None
+        for _ in range(100):
+            scene = Scene.of(Segment(tuple(rng.uniform(-1.0, 1.0, 2)), tuple(rng.uniform(-1.0, 1.0, 2))))
+            scan = synthetic_scan(robot, scene, Pose2D(), noise_std=0.01, rng=rng)
+            nominal = rng.uniform(-0.5, 0.5, 2)
+            a, b = fast.filter(nominal, scan), reference.filter(nominal, scan)
+            assert np.array_equal(a.u, b.u) and a.message == b.message and a.n_constraints == b.n_constraints
+
+
 def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monkeypatch):
     """A numba that is installed but cannot compile (an unsupported CPU, a broken LLVM): ``"auto"`` still gives a
     filter, on numpy, and says why once; ``"numba"`` raises the compile error."""
