@@ -120,6 +120,10 @@ class Reading(enum.IntEnum):
     """``NaN`` or a finite value outside ``[range_min, range_max]``: no information."""
 
 
+# The readings' codes as plain ints (an enum member's lookup costs more than the array operation it feeds).
+_HIT, _NO_RETURN, _TOO_CLOSE, _INVALID = (int(reading) for reading in Reading)
+
+
 class SectorState(enum.Enum):
     """What a sector of the scan says about the space it covers."""
 
@@ -684,11 +688,11 @@ class LaserScan:
     def readings(self) -> np.ndarray:
         """The :class:`Reading` of every beam, as a read-only int8 array."""
         r = self.ranges
-        codes = np.full(r.size, int(Reading.INVALID), dtype=np.int8)
-        codes[self._hit_mask] = int(Reading.HIT)
+        codes = np.full(r.size, _INVALID, dtype=np.int8)
+        codes[self._hit_mask] = _HIT
         if np.isinf(r).any():
-            codes[r == math.inf] = int(Reading.NO_RETURN)
-            codes[r == -math.inf] = int(Reading.TOO_CLOSE)
+            codes[r == math.inf] = _NO_RETURN
+            codes[r == -math.inf] = _TOO_CLOSE
         codes.flags.writeable = False
         return codes
 
@@ -759,9 +763,9 @@ class LaserScan:
         beams, coverage = layout
         readings = self.readings[beams]
         n_beams = int(readings.size)
-        n_informative = n_beams - int(np.count_nonzero(readings == Reading.INVALID))
-        n_too_close = int(np.count_nonzero(readings == Reading.TOO_CLOSE))
-        hits = self.ranges[beams][readings == Reading.HIT]
+        n_informative = n_beams - int(np.count_nonzero(readings == _INVALID))
+        n_too_close = int(np.count_nonzero(readings == _TOO_CLOSE))
+        hits = self.ranges[beams][readings == _HIT]
         if n_too_close:
             min_range, state = self.range_min, SectorState.OBSTACLE
         elif hits.size:

@@ -266,7 +266,7 @@ class SimConfig:
             round, and keeps its disk), ``"disk"`` (the circumscribed disk of radius ``robot.radius``), or
             ``"auto"`` (default): the footprint when it is convex, else the disk (a concave footprint's
             exact clearance is not implemented; its circumscribed disk over-reports contacts).
-        kernels: how the footprint's exact clearance is computed, and how far the rays are cast:
+        kernels: how the body's exact clearance (footprint or disk) is computed, and how far the rays are cast:
             ``"auto"`` (default: numba's compiled loops when numba is installed, ``pip install "safenav[fast]"``;
             ``SAFENAV_KERNELS=numpy`` or ``numba`` decides for a whole process), ``"numba"`` or ``"numpy"`` (the
             reference: full-length rays); the same clearances, the same hits, the ranges to Bullet's rounding
@@ -424,8 +424,8 @@ class BulletSim:
         # The footprint's exact clearance, and rays shortened to just past what they first meet (see _short_rays):
         # compiled when the setting selects numba's kernels.
         shortened = bool(world.obstacles) and not self._movers
-        compiled = COMPILED_GAPS.select(config.kernels) if self._footprint is not None or shortened else None
-        self._gap_kernels = compiled if self._footprint is not None else None
+        compiled = COMPILED_GAPS.select(config.kernels) if self._footprint is not None or world.obstacles else None
+        self._gap_kernels = compiled    # the truth's clearance (footprint or disk)
         self._ray_kernels = compiled if shortened else None
         self.ray_counts = {"cast": 0, "shortened": 0, "recast": 0}
         """Rays cast so far, how many of them shortened to where they first meet an obstacle, and how many of those
@@ -608,7 +608,7 @@ class BulletSim:
         """Exact signed clearance of the body disk at ``position`` at ``time`` [m]."""
         if self._movers:
             return self.world.clearance_at(position, self.robot.radius, time)
-        return self.world.clearance(position, self.robot.radius)
+        return self.world.clearance(position, self.robot.radius, self._gap_kernels)
 
     def _truths(self, poses: Sequence[Pose2D], times: Sequence[float]) -> list[float]:
         """:meth:`_truth` at each of ``poses`` and ``times``; in a static world in one evaluation (the same values)."""
@@ -621,7 +621,7 @@ class BulletSim:
         if self._movers:
             return [self._disk_truth(pose, time) for pose, time in zip(poses, times, strict=True)]
         positions = np.array([(pose.x, pose.y) for pose in poses], dtype=float).reshape(-1, 2)
-        return (self.world.signed_distance(positions) - self.robot.radius).tolist()
+        return (self.world.signed_distance(positions, self._gap_kernels) - self.robot.radius).tolist()
 
     def bullet_clearance(self, pose: Pose2D | Sequence[float] | None = None, max_distance: float = 2.0) -> float:
         """Body clearance at ``pose`` measured by PyBullet's ``getClosestPoints`` [m].

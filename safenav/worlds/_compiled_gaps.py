@@ -2,8 +2,9 @@
 
 :func:`polygon_gaps` mirrors :func:`safenav.worlds.shapes.polygon_gaps` line for line in loops (the same
 separating axes, corner-to-side and centre-to-side distances, in the same arithmetic), without its pruning of
-the obstacles that cannot be the nearest (pruning changes no value); ``tests/worlds/test_world.py`` checks
-that both give the same values.
+the obstacles that cannot be the nearest (pruning changes no value); :func:`signed_distance` mirrors
+:meth:`safenav.worlds.World.signed_distance` (:func:`safenav.worlds.shapes.box_distance` and the circles' distances
+in the same arithmetic); ``tests/worlds/test_world.py`` checks that both give the same values.
 """
 
 from __future__ import annotations
@@ -22,6 +23,33 @@ def _segment_distance(px, py, sx, sy, ex, ey):
     x, y = px - sx, py - sy
     t = min(max((x * ex + y * ey) / (ex * ex + ey * ey), 0.0), 1.0)
     return math.hypot(x - t * ex, y - t * ey)
+
+
+@_jit
+def _box_point(px, py, box):
+    """shapes.box_distance, one point and one box (a row of ``shapes.box_array``) [m]."""
+    dx, dy = px - box[0], py - box[1]
+    cos, sin = box[4], box[5]
+    qx = abs(cos * dx + sin * dy) - box[2]
+    qy = abs(-sin * dx + cos * dy) - box[3]
+    return math.hypot(max(qx, 0.0), max(qy, 0.0)) + min(max(qx, qy), 0.0)
+
+
+@_jit
+def signed_distance(points, boxes, circles):
+    """World.signed_distance: ``(N,)`` the signed distance [m] of each point ``(N, 2)`` to the nearest of the boxes
+    (rows of ``shapes.box_array``) and ``circles`` ``(C, 3)``; ``inf`` without obstacles."""
+    count = points.shape[0]
+    best = np.full(count, np.inf)
+    for i in range(count):
+        px, py = points[i, 0], points[i, 1]
+        nearest = np.inf
+        for m in range(boxes.shape[0]):
+            nearest = min(nearest, _box_point(px, py, boxes[m]))
+        for c in range(circles.shape[0]):
+            nearest = min(nearest, math.hypot(px - circles[c, 0], py - circles[c, 1]) - circles[c, 2])
+        best[i] = nearest
+    return best
 
 
 @_jit
@@ -61,12 +89,8 @@ def polygon_gaps(polygons, boxes, corners, normals, circles):
                 continue
             # Apart, the nearest pair is a corner of one and a side of the other.
             apart = np.inf
-            cos, sin = boxes[m, 4], boxes[m, 5]
             for v in range(sides):      # shapes.box_distance of the polygon's corners
-                dx, dy = polygons[k, v, 0] - boxes[m, 0], polygons[k, v, 1] - boxes[m, 1]
-                qx = abs(cos * dx + sin * dy) - boxes[m, 2]
-                qy = abs(-sin * dx + cos * dy) - boxes[m, 3]
-                apart = min(apart, math.hypot(max(qx, 0.0), max(qy, 0.0)) + min(max(qx, qy), 0.0))
+                apart = min(apart, _box_point(polygons[k, v, 0], polygons[k, v, 1], boxes[m]))
             for c in range(4):
                 for v in range(sides):
                     apart = min(apart, _segment_distance(corners[m, c, 0], corners[m, c, 1], polygons[k, v, 0],

@@ -375,18 +375,21 @@ def _build_gaps() -> SimpleNamespace:
     require("numba", extra="fast", purpose="the compiled kernels (kernels='numba')")
     from safenav.worlds import _compiled_gaps
 
-    kernels = SimpleNamespace(polygon_gaps=_compiled_gaps.polygon_gaps, ray_reach=_compiled_gaps.ray_reach)
+    kernels = SimpleNamespace(polygon_gaps=_compiled_gaps.polygon_gaps, ray_reach=_compiled_gaps.ray_reach,
+                              signed_distance=_compiled_gaps.signed_distance)
     square = np.array([[[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]]])
     sides = box_sides(np.array([[2.0, 0.0, 0.5, 0.5, 1.0, 0.0]]))
     circles = np.array([[0.0, 2.0, 0.3]])
     kernels.polygon_gaps(square, sides.boxes, sides.corners, sides.normals, circles)
     kernels.ray_reach(0.0, 0.0, 0.0, np.zeros((1, 3)), np.array([0.5 * math.pi]), np.array([4], dtype=np.intp),
                       square[0] / math.sqrt(0.5), np.full(4, 5.0), sides.boxes, circles, 0.01)
+    kernels.signed_distance(square[0], sides.boxes, circles)
     return kernels
 
 
 #: The simulator's compiled kernels (:attr:`safenav.sim_bullet.SimConfig.kernels`): the exact clearance of a convex
-#: polygon (:func:`polygon_gaps` with ``compiled=``, the footprint truth) and how far each lidar ray must reach
+#: polygon (:func:`polygon_gaps` with ``compiled=``, the footprint truth), of points (``signed_distance``, the disk
+#: truth, :meth:`~safenav.worlds.World.signed_distance` with ``compiled=``) and how far each lidar ray must reach
 #: (``ray_reach``, which shortens the rays PyBullet casts).
 COMPILED_GAPS = KernelGroup(_build_gaps, "the simulator measures clearance with numpy and casts full-length rays "
                                          "(the same values, slower)")

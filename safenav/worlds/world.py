@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from safenav._checks import positive, vector
+from safenav._kernels import plain
 from safenav.errors import InvalidConfig
 from safenav.geometry import Pose2D
 from safenav.synthetic import Circle, Scene, Segment
@@ -113,12 +114,15 @@ class World:
         rows = [(*o.center, o.radius) for o in self.obstacles if isinstance(o, Cylinder)]
         return np.array(rows, dtype=float).reshape(-1, 3)
 
-    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+    def signed_distance(self, points: np.ndarray, compiled: SimpleNamespace | None = None) -> np.ndarray:
         """Signed distance from each of ``points`` ``(N, 2)`` to the nearest obstacle [m].
 
-        Negative inside an obstacle; ``inf`` in a world without obstacles.
+        Negative inside an obstacle; ``inf`` in a world without obstacles. ``compiled``: the compiled kernels
+        (:data:`~safenav.worlds.shapes.COMPILED_GAPS`), or ``None``: numpy (the same values).
         """
         p = np.asarray(points, dtype=float).reshape(-1, 2)
+        if compiled is not None:
+            return compiled.signed_distance(plain(p), self._boxes, self._circles)
         best = np.full(p.shape[0], math.inf)
         if self._boxes.size:
             best = np.minimum(best, box_distance(p, self._boxes).min(axis=1))
@@ -128,18 +132,21 @@ class World:
             best = np.minimum(best, (distance - circles[None, :, 2]).min(axis=1))
         return best
 
-    def clearance(self, pose: Pose2D | Sequence[float], radius: float) -> float:
+    def clearance(self, pose: Pose2D | Sequence[float], radius: float, compiled: SimpleNamespace | None = None
+                  ) -> float:
         """Exact signed clearance of the body disk to the nearest obstacle [m].
 
         Args:
             pose: the base pose, or just its position ``(x, y)`` [m].
             radius: radius of the body disk [m].
+            compiled: the compiled kernels (:data:`~safenav.worlds.shapes.COMPILED_GAPS`), or ``None``: numpy
+                (the same value).
 
         Returns:
             Distance from the disk to the nearest obstacle [m]: negative when the disk
             overlaps an obstacle (minus the depth), ``inf`` in a world without obstacles.
         """
-        return float(self.signed_distance(np.array([[pose[0], pose[1]]]))[0]) - radius
+        return float(self.signed_distance(np.array([[pose[0], pose[1]]], dtype=float), compiled)[0]) - radius
 
     def footprint_clearance(self, poses: np.ndarray, footprint: np.ndarray,
                             compiled: SimpleNamespace | None = None) -> np.ndarray:

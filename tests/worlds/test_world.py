@@ -134,6 +134,31 @@ def test_the_compiled_footprint_clearance_is_the_numpy_one(parametrised):
     assert overlapping > 10
 
 
+def test_the_compiled_signed_distance_is_the_numpy_one():
+    """The disk truth's compiled distance (``COMPILED_GAPS.signed_distance``) gives ``World.signed_distance``'s
+    values bit for bit: random points in and around random worlds (inside boxes and cylinders, on their
+    outlines, far away), worlds of boxes only, of cylinders only and without obstacles; and
+    ``World.clearance`` likewise."""
+    pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
+    from safenav.worlds.shapes import COMPILED_GAPS
+
+    compiled = COMPILED_GAPS.load()
+    rng = np.random.default_rng(9)
+    inside = 0
+    for _robot, _footprint, world in _footprint_worlds(3):
+        for each in (world, World("boxes", tuple(o for o in world.obstacles if not isinstance(o, Cylinder))),
+                     World("cylinders", tuple(o for o in world.obstacles if isinstance(o, Cylinder))),
+                     World("empty", ())):
+            points = np.vstack((rng.uniform(-6.0, 6.0, (2000, 2)), rng.uniform(-40.0, 40.0, (50, 2)),
+                                np.round(rng.uniform(-6.0, 6.0, (200, 2)), 1)))
+            reference = each.signed_distance(points)
+            np.testing.assert_array_equal(each.signed_distance(points, compiled), reference)
+            for point in points[:50]:
+                assert each.clearance(point, 0.2, compiled) == each.clearance(point, 0.2)
+            inside += int(np.count_nonzero(reference < 0.0))
+    assert inside > 500
+
+
 def test_footprint_clearance_agrees_with_the_falsifiers_and_is_never_below_the_disks():
     """An independent implementation (the falsifier's, on the world's outlines as segments and circles) gives
     the same distance wherever both see the footprint apart; the footprint, inside its disk, is never nearer."""
