@@ -556,3 +556,36 @@ def inside_polygon(polygon, points):
                 crossings += 1
         inside[i] = crossings % 2 == 1
     return inside
+
+
+@_jit
+def nearest_per_bin(angles, keys, n_bins):
+    """perception.nearest_per_bin from the bearings: per bin the point with the smallest key (the lowest index among
+    equal keys, a NaN key after every other), those points by increasing key (stable; NaN last)."""
+    best = np.full(n_bins, -1, dtype=np.intp)
+    scale = n_bins / (2.0 * math.pi)
+    for i in range(angles.size):
+        b = int((angles[i] + math.pi) * scale) % n_bins
+        j = best[b]
+        if j < 0 or keys[i] < keys[j] or (keys[j] != keys[j] and keys[i] == keys[i]):
+            best[b] = i
+    count = 0
+    for b in range(n_bins):
+        if best[b] >= 0:
+            count += 1
+    chosen = np.empty(count, dtype=np.intp)
+    count = 0
+    for b in range(n_bins):
+        if best[b] >= 0:
+            chosen[count] = best[b]
+            count += 1
+    # insertion sort by key, stable, NaN last (a few dozen points)
+    for i in range(1, chosen.size):
+        moving = chosen[i]
+        key = keys[moving]
+        j = i - 1
+        while j >= 0 and (keys[chosen[j]] > key or (keys[chosen[j]] != keys[chosen[j]] and key == key)):
+            chosen[j + 1] = chosen[j]
+            j -= 1
+        chosen[j + 1] = moving
+    return chosen

@@ -854,7 +854,7 @@ class CBFSafetyFilter(SafetyFilter):
             # Initial working set: every hard row and the tightest obstacle row per angular bin.
             point_rows = np.flatnonzero(cand.point >= 0)
             chosen = nearest_per_bin(points[cand.point[point_rows]], cand.h[point_rows], (self.lookahead, 0.0),
-                                     self.config.n_bins)
+                                     self.config.n_bins, compiled=self._kernels)
             working = cand.point < 0
             working[point_rows[chosen]] = True
         initial = working.copy()

@@ -2,7 +2,7 @@
 
 The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
 numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
-installed (``pip install "safenav[fast]"``) six pieces run as compiled loops instead
+installed (``pip install "safenav[fast]"``) seven pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
 * the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
@@ -18,7 +18,9 @@ installed (``pip install "safenav[fast]"``) six pieces run as compiled loops ins
 * the MPC's verification of a plan (``plan_check``, :meth:`~safenav.filters.MPCSafetyFilter.check_plan`): the
   rollout, every body disk at every knot against every point, the bounds and the acceleration rows;
 * the zones' test of which points lie inside the stop and slowdown polygons (``inside_polygon``,
-  :func:`~safenav.filters.body.inside_polygon`, :class:`~safenav.filters.ZonesFilter`).
+  :func:`~safenav.filters.body.inside_polygon`, :class:`~safenav.filters.ZonesFilter`);
+* the working sets' nearest point per angular bin (``nearest_per_bin``,
+  :func:`~safenav.filters.perception.nearest_per_bin`: the MPC's point slots, the CBF's first working set).
 
 The numpy code stays the reference: each kernel names the function it mirrors, and
 ``tests/filters/test_kernels.py`` checks that both give the same rows to rounding on random problems, the
@@ -78,7 +80,7 @@ def _build() -> SimpleNamespace:
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
         "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
-        "plan_check", "seen_again", "inside_polygon")})
+        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin")})
     _warm(kernels)
     return kernels
 
@@ -108,6 +110,7 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.sqp_violated(jacobian, np.zeros(2), dx, dy, 1.0 / radii, values, radii, 0.0, np.zeros(2), candidates,
                          working, 1e-9)
     kernels.inside_polygon(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), points)
+    kernels.nearest_per_bin(np.array([0.1, -2.0]), np.array([0.5, 0.2]), 4)
     # the MPC's check of a plan: two periods, one disk
     commands, bounds = np.zeros((2, 2)), np.ones((2, 2))
     kernels.plan_check(commands, np.zeros(2), 0.5, 0.5, 0.05, 0.1, np.zeros((1, 2)), points, np.zeros((2, 1)),

@@ -894,7 +894,7 @@ def _seen_ranges(scan: LaserScan, shrink: float = 0.0) -> np.ndarray:
 
 
 def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, float], n_bins: int,
-                    angles: np.ndarray | None = None) -> np.ndarray:
+                    angles: np.ndarray | None = None, compiled: Any = None) -> np.ndarray:
     """Indices of the point with the smallest key in each angular bin around ``centre``.
 
     Args:
@@ -904,6 +904,7 @@ def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, f
         n_bins: number of equal bins over the full turn.
         angles: ``(N,)`` the points' bearings from ``centre`` [rad], when already known (a caller
             that bins the same points several times computes them once).
+        compiled: the kernels of :mod:`~safenav.filters.kernels` (the same indices, by one compiled loop).
 
     Returns:
         Indices into ``points``, in increasing key order.
@@ -912,6 +913,8 @@ def nearest_per_bin(points: np.ndarray, keys: np.ndarray, centre: tuple[float, f
         return np.empty(0, dtype=np.intp)
     if angles is None:
         angles = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
+    if compiled is not None:
+        return compiled.nearest_per_bin(plain(angles), plain(keys), int(n_bins))
     bins = ((angles + math.pi) * (n_bins / TWO_PI)).astype(np.intp) % n_bins
     order = np.lexsort((keys, bins))
     sorted_bins = bins[order]

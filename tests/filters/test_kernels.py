@@ -380,6 +380,35 @@ def test_the_compiled_polygon_test_is_the_numpy_one():
             assert np.array_equal(a.u, b.u) and a.message == b.message and a.n_constraints == b.n_constraints
 
 
+def test_the_compiled_nearest_per_bin_is_the_numpy_one():
+    """The working sets' compiled binning gives ``perception.nearest_per_bin``'s indices in its order exactly:
+    random points round any centre, 1 to 512 bins, keys with many ties (the lowest index wins, the order stays
+    stable), NaN keys, bearings of exactly -pi and pi, no points."""
+    from safenav.filters.perception import nearest_per_bin
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(6)
+    ties = 0
+    for trial in range(2000):
+        count = int(rng.integers(0, 300))
+        points = rng.normal(0.0, 2.0, (count, 2))
+        if count and trial % 7 == 0:
+            points[: count // 3] = [[-1.0, 0.0]]             # bearing pi (and -pi through -0.0 below)
+            points[: count // 6, 1] = -0.0
+        keys = rng.normal(0.0, 1.0, count)
+        if trial % 3 == 0:
+            keys = np.round(keys, 1)                          # ties
+        if trial % 5 == 0 and count:
+            keys[rng.random(count) < 0.2] = np.nan
+        centre = (0.0, 0.0) if trial % 2 else tuple(rng.normal(0.0, 0.5, 2))
+        n_bins = int(rng.choice([1, 3, 8, 32, 64, 512]))
+        want = nearest_per_bin(points, keys, centre, n_bins)
+        got = nearest_per_bin(points, keys, centre, n_bins, compiled=compiled)
+        np.testing.assert_array_equal(got, want)
+        ties += len(want) - len(np.unique(keys[want]))
+    assert ties > 100
+
+
 def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monkeypatch):
     """A numba that is installed but cannot compile (an unsupported CPU, a broken LLVM): ``"auto"`` still gives a
     filter, on numpy, and says why once; ``"numba"`` raises the compile error."""

@@ -880,17 +880,22 @@ class MPCSafetyFilter(SafetyFilter):
         count = problem.points.shape[0]
         if count <= self.n_points:
             return np.arange(count)
-        gaps = [distances(self.knot_centres(commands, problem.velocity), problem.points) for commands in references]
+        compiled = self._kernels
+        if compiled is None:
+            gaps = [distances(self.knot_centres(commands, problem.velocity), problem.points)
+                    for commands in references]
+        else:   # the compiled check's distances (the same to rounding; ``known`` come from it too)
+            gaps = [self.check_plan(problem, commands).distances for commands in references]
         keys = np.min(functools.reduce(np.minimum, [*gaps, *known]) - problem.radii, axis=1)
         angles = np.arctan2(problem.points[:, 1], problem.points[:, 0])     # once for every halving of the bins
-        chosen = nearest_per_bin(problem.points, keys, (0.0, 0.0), self.n_points, angles)
+        chosen = nearest_per_bin(problem.points, keys, (0.0, 0.0), self.n_points, angles, compiled)
         bins = self.n_points
         free = np.ones(count, dtype=bool)
         while chosen.size < self.n_points and bins < 64 * self.n_points:
             bins *= 2
             free[chosen] = False
             rest = np.flatnonzero(free)
-            more = rest[nearest_per_bin(problem.points[rest], keys[rest], (0.0, 0.0), bins, angles[rest])]
+            more = rest[nearest_per_bin(problem.points[rest], keys[rest], (0.0, 0.0), bins, angles[rest], compiled)]
             chosen = np.concatenate((chosen, more[: self.n_points - chosen.size]))
         return chosen
 
