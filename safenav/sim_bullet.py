@@ -421,8 +421,8 @@ class BulletSim:
         self._obstacle_body = self._build_obstacles()
         self._movers = world.movers if isinstance(world, DynamicWorld) else ()
         self._footprint = _truth_footprint(robot, config.truth)
-        # The footprint's exact clearance, and rays shortened to just past what they first meet (see _short_rays):
-        # compiled when the setting selects numba's kernels.
+        # The body's exact clearance (footprint or disk), and rays shortened to just past what they first meet (see
+        # _short_rays): compiled when the setting selects numba's kernels.
         shortened = bool(world.obstacles) and not self._movers
         compiled = COMPILED_GAPS.select(config.kernels) if self._footprint is not None or world.obstacles else None
         self._gap_kernels = compiled    # the truth's clearance (footprint or disk)

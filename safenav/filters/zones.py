@@ -26,7 +26,6 @@ from safenav.errors import InvalidConfig
 from safenav.filters import kernels
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View
 from safenav.filters.body import inside_polygon
-from safenav.filters.kernels import plain
 from safenav.geometry import counter_clockwise
 from safenav.robot import RobotSpec
 
@@ -135,12 +134,8 @@ class ZonesFilter(SafetyFilter):
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         points = view.points[: view.n_current]   # like the collision monitor: the current scans only
         clearance = self.body.clearance(points)
-        if self._kernels is None:
-            near = points[inside_polygon(self.slowdown_polygon, points)]
-            in_stop = inside_polygon(self.stop_polygon, near)
-        else:
-            near = points[self._kernels.inside_polygon(self.slowdown_polygon, plain(points))]
-            in_stop = self._kernels.inside_polygon(self.stop_polygon, near)
+        near = points[inside_polygon(self.slowdown_polygon, points, self._kernels)]
+        in_stop = inside_polygon(self.stop_polygon, near, self._kernels)
         reason = None
         if int(in_stop.sum()) >= self.config.min_points:
             u = np.zeros(2)
