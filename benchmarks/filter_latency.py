@@ -14,9 +14,10 @@ ramping at its acceleration limits, the lidar's range noise), so that the time m
 is the filter's. Every preset, both filters (the CBF given the velocity) and the MPC tracking the CBF's
 answer (``reference="cbf"``, the MPC inside the deadlock escape: a CBF call in each call), ``dt`` 0.02,
 0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
-the MPC's compute budget (half a period) and longer than the period, the CPU time of the
-calls (which a busy machine's scheduling does not inflate), and the MPC's solving calls
-apart; the straightforward baseline timed on the CBF's own scans of the same run.
+the MPC's compute budget (half a period, or ``--deadline-budget`` of it) and longer than the
+period, the CPU time of the calls (which a busy machine's scheduling does not inflate), the
+MPC's calls that gave up at the deadline, and its solving calls apart; the straightforward
+baseline timed on the CBF's own scans of the same run.
 
 ``--reach`` times the CBF (given the velocity) by what lies within its reach, every preset, one
 fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ahead, a wall
@@ -32,6 +33,7 @@ Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``
 
     python -m benchmarks.filter_latency --deadline --json latency.json
     python benchmarks/filter_latency.py --deadline --only-deadline
+    python -m benchmarks.filter_latency --only-deadline --deadline-budget 0.1 --deadline-robots m2wr
     python -m benchmarks.filter_latency --reach --only-reach
     python -m benchmarks.filter_latency --gc --only-gc
 """
@@ -301,6 +303,7 @@ class DeadlineRecorder:
         self.solving: list[float] = []
         self.solver: list[float] = []
         self.statuses: dict[str, int] = {}
+        self.deadline = 0
         self.scans: list[LaserScan] = []
         self.keep_scans = keep_scans
 
@@ -311,31 +314,41 @@ class DeadlineRecorder:
             self.solving.append(result.filter_time)
             self.solver.append(result.solve_time)
         self.statuses[result.status.value] = self.statuses.get(result.status.value, 0) + 1
+        self.deadline += result.reason is not None and result.reason.family == "deadline"
         if len(self.scans) < self.keep_scans:
             self.scans.append(scan)
 
 
-def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int) -> list[dict[str, Any]]:
-    """Per robot, period and filter: every call's time in issue 18's closed loop (see the module docstring)."""
+def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int,
+                      budget_fraction: float | None = None) -> list[dict[str, Any]]:
+    """Per robot, period and filter: every call's time in issue 18's closed loop (see the module docstring);
+    the MPC's compute budget ``budget_fraction * dt`` (default: the filter's)."""
     rows = []
+    settings = {} if budget_fraction is None else {"budget_fraction": budget_fraction}
+
+    def mpc(robot: RobotSpec, dt: float, **kwargs: Any) -> MPCSafetyFilter:
+        if budget_fraction is not None:
+            kwargs["budget"] = budget_fraction * dt
+        return MPCSafetyFilter(robot, dt, **kwargs)
+
     # "mpc (cbf reference)": the MPC inside the escape (safenav.filters.ESCAPE_PRESETS), a CBF call in each call.
     makers: dict[str, Callable[[RobotSpec, float], SafetyFilter]] = {
-        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": lambda robot, dt: MPCSafetyFilter(robot, dt),
-        "mpc (cbf reference)": lambda robot, dt: MPCSafetyFilter(robot, dt, reference="cbf")}
+        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": mpc,
+        "mpc (cbf reference)": lambda robot, dt: mpc(robot, dt, reference="cbf")}
     for name in robots:
         robot = preset(name)
         for dt in dts:
-            budget = MPCSafetyFilter(robot, dt).budget
+            budget = mpc(robot, dt).budget
             for filter_name, maker in makers.items():
                 recorder = DeadlineRecorder(keep_scans=400 if filter_name == "cbf" else 0)
                 maker(robot, dt)    # builds (and caches) what is built once per shape, outside the timed calls
                 wall_episodes(robot, dt, functools.partial(maker, robot, dt), seed, recorder)
-                row = {"robot": name, "dt": dt, "filter": filter_name, "budget_s": budget,
+                row = {"robot": name, "dt": dt, "filter": filter_name, "budget_s": budget, **settings,
                        "calls": tail(recorder.calls, dt, budget), "cpu": tail(recorder.cpu, dt, budget),
                        "solving_calls": tail(recorder.solving, dt, budget),
                        "solver": tail(recorder.solver, dt, budget),
                        "solving_share": len(recorder.solving) / max(len(recorder.calls), 1),
-                       "statuses": recorder.statuses}
+                       "statuses": recorder.statuses, "deadline_fallbacks": recorder.deadline}
                 if filter_name == "cbf":
                     baseline = straightforward_cbf(CBFSafetyFilter(robot, dt))
                     rng = np.random.default_rng(seed)
@@ -390,11 +403,12 @@ def deadline_table(rows: Sequence[dict[str, Any]]) -> str:
         table.append([row["robot"], row["dt"], row["filter"], calls["n"], calls["median_us"], calls["p99_us"],
                       calls["p999_us"], calls["max_us"], f"{100 * calls['over_budget']:.1f}%",
                       f"{100 * calls['over_period']:.1f}%", f"{cpu['median_us']:.0f} / {cpu['p99_us']:.0f} / "
-                      f"{cpu['max_us']:.0f}", f"{100 * row['solving_share']:.0f}%",
+                      f"{cpu['max_us']:.0f}", f"{100 * row['solving_share']:.0f}%", row["deadline_fallbacks"],
                       solving["median_us"], solving["p99_us"], solving["max_us"],
                       f"{ratio:.1f}x" if math.isfinite(ratio) else "–"])
     return markdown_table(["robot", "dt [s]", "filter", "calls", "median µs", "p99 µs", "p99.9 µs", "max µs",
-                           "over dt/2", "over dt", "CPU median / p99 / max µs", "solving", "solving median µs",
+                           "over budget", "over dt", "CPU median / p99 / max µs", "solving", "deadline fallbacks",
+                           "solving median µs",
                            "solving p99 µs", "solving max µs", "baseline / median"], table)
 
 
@@ -426,6 +440,9 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                         help="presets of the deadline scenario (default: all)")
     parser.add_argument("--deadline-dts", default=",".join(str(dt) for dt in DEADLINE_PERIODS),
                         help="control periods of the deadline scenario [s] (default: 0.02,0.05,0.1)")
+    parser.add_argument("--deadline-budget", type=float, metavar="FRACTION",
+                        help="the MPC's compute budget in the deadline scenario, a fraction of dt (default: the "
+                             "filter's, 0.5)")
     parser.add_argument("--reach", action="store_true",
                         help="also time the CBF by what lies within its reach (open space to a wall beside)")
     parser.add_argument("--only-reach", action="store_true", help="run the --reach table alone")
@@ -464,7 +481,8 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     if args.deadline or args.only_deadline:
         print("issue 18's closed loop (wall beside the path, full-speed turning nominal, ramping base):", flush=True)
         results["deadline"] = deadline_scenario(args.deadline_robots.split(","),
-                                                [float(dt) for dt in args.deadline_dts.split(",")], args.seed)
+                                                [float(dt) for dt in args.deadline_dts.split(",")], args.seed,
+                                                args.deadline_budget)
         print()
         print(deadline_table(results["deadline"]))
         if args.only_deadline:

@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from benchmarks import filter_latency
 from safenav import preset
 from safenav.robot import PRESET_NAMES
@@ -56,3 +58,18 @@ def test_the_gc_table_measures_a_full_collection_in_fresh_processes(tmp_path):
         assert built["frozen_objects"] == 0 and built["visited"] > 50_000
         assert frozen["frozen_objects"] > 50_000 and frozen["visited"] < 0.05 * built["visited"]
     assert rows["numba", False]["visited"] > rows["numpy", False]["visited"]
+
+
+def test_the_deadline_scenario_times_every_filter_at_the_budget_asked(tmp_path, monkeypatch):
+    monkeypatch.setattr(filter_latency, "WALL_GAPS", (0.06,))
+    monkeypatch.setattr(filter_latency, "DEADLINE_DURATION", 1.0)
+    path = tmp_path / "deadline.json"
+    assert filter_latency.main(["--only-deadline", "--deadline-robots", "m2wr", "--deadline-dts", "0.05",
+                                "--deadline-budget", "0.1", "--json", str(path)]) == 0
+    rows = json.loads(path.read_text())["deadline"]
+    assert [row["filter"] for row in rows] == ["cbf", "mpc", "mpc (cbf reference)"]
+    for row in rows:
+        assert row["budget_s"] == pytest.approx(0.005) and row["budget_fraction"] == 0.1
+        assert row["calls"]["n"] == 2 * 20 == sum(row["statuses"].values())
+        assert 0 <= row["deadline_fallbacks"] <= row["statuses"].get("fallback", 0)
+    assert rows[0]["deadline_fallbacks"] == 0 and "baseline" in rows[0]

@@ -401,7 +401,7 @@ class BrokenBackend:
     def __init__(self, answer):
         self.answer = answer
 
-    def solve(self, nlp, deadline=math.inf, clock=None):
+    def solve(self, nlp, deadline=math.inf, clock=None, step=0.0):
         knots = None if self.answer is None else np.full(np.shape(nlp.start), self.answer)
         return NLPOutcome(knots, 0.0, 0.0, "broken", 0, 0.0)
 

@@ -163,7 +163,7 @@ def solve(case: dict, solver: str):
     view = View((), case["points"], case["uncertainty"], case["points"].shape[0], frontier)
     problem = safety._problem(case["u_nom"], view, case["velocity"], case["hold"])
     warm = np.clip(case["warm"], problem.lower, problem.upper)
-    return problem, safety._solve(problem, warm, case["candidate"], math.inf)
+    return problem, safety._solve(problem, warm, case["candidate"])
 
 
 @pytest.mark.skipif(not DATA.exists(), reason="tests/data/mpc_replay.npz is missing (record it with --record)")

@@ -23,6 +23,7 @@ from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
 from safenav.filters.kernels import plain
 from safenav.filters.mpc.config import MPCConfig
+from safenav.filters.mpc.deadline import CallBudget
 from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
 from safenav.filters.mpc.plan import (
     BaseModel,
@@ -189,14 +190,23 @@ class MPCSafetyFilter(SafetyFilter):
     progress without reversing (``hold_stop``). The feasible set is unchanged.
 
     **Deadline.** A call has a compute budget (``budget``, default ``BUDGET_FRACTION = 0.5``
-    of ``dt``), counted from the start of the optimisation and checked before every QP of
-    the SQP: when it runs out the solve is abandoned (the next call starts afresh, on time)
-    and the filter follows the next command of its last verified plan, which ends stopped
-    (status ``FALLBACK``, reason ``deadline``); without one it brakes at the acceleration
-    limits. That plan was verified against the points seen then: checked against this call's,
-    when it comes nearer a point than its guaranteed radius (a wall seen since) and braking at
-    the limits keeps more clearance, the filter brakes instead and says so. The overrun is at
-    most one QP of the SQP and that check.
+    of ``dt``), counted from the call's start: the perception, the reference's call, the solve,
+    the verification and the result all spend it. The SQP checks the clock before every step
+    (an iteration, or another round of rows for its QP) and begins one only if it can end, as
+    long as the longest step of the recent calls (at most a quarter of the budget) or of this
+    call, before the budget less a reserve for the verification and the result (as long as the
+    longest the recent calls' took, at most a quarter of the budget;
+    :mod:`~safenav.filters.mpc.deadline`). When it cannot, the solve is abandoned (the next call
+    starts afresh, on time) and the filter follows the next command of its last verified plan,
+    which ends stopped (status ``FALLBACK``, reason ``deadline``); without one it brakes at the
+    acceleration limits. That plan was verified against the points seen then: checked against
+    this call's, when it comes nearer a point than its guaranteed radius (a wall seen since) and
+    braking at the limits keeps more clearance, the filter brakes instead and says so. A call
+    ends within its budget unless what comes before the solve (the perception, the reference's
+    call, the fast path's check) already takes it, a step takes longer than that estimate (longer
+    than every step of the recent calls and of this call, or than a quarter of the budget), or the
+    verification and result longer than the reserve (and on the filter's first solving calls,
+    before they have been timed); only the solve is cut short.
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
@@ -266,7 +276,7 @@ class MPCSafetyFilter(SafetyFilter):
                          deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width)
         dt = self.dt
         self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
-        self.budget = float(cfg.budget)
+        self._budget = CallBudget(cfg.budget, self.clock)
         self.model = BaseModel(dt, cfg.time_constant)
         self._step = np.array([robot.a_max, robot.alpha_max]) * dt
         self.speed = max(robot.v_max, -robot.v_min)
@@ -311,13 +321,13 @@ class MPCSafetyFilter(SafetyFilter):
                 memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time,
                 kernels=cfg.kernels)
         self._referenced: FilterResult | None = None    # the reference's answer of this call
-        self._call_start: float | None = None
         #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock
         #: are this filter's), used while :attr:`narrow` asks for it, else ``None``.
         self.narrow_planner: MPCSafetyFilter | None = None
         if narrow_body is not None:
             self.narrow_planner = MPCSafetyFilter(robot, dt, config=dataclasses.replace(
                 base_config, body="cover", narrow_body=None, reference="nominal", memory_capacity=0), clock=clock)
+            self.narrow_planner._budget = self._budget      # one call, one budget
         self._in_narrow = False     # whether the last answer's plan was the narrow planner's
 
     def _inflation(self, hold: int) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -451,16 +461,17 @@ class MPCSafetyFilter(SafetyFilter):
         ``u_nom``, and its time and compute budget include the reference's call.
         """
         start = time.perf_counter()
+        self._budget.begin()    # the budget covers the whole call, the reference's too
         try:
             if self.reference is not None:
-                self._call_start = self.clock()     # the budget covers the reference's call too
                 self.reference.passage = self.passage
                 self.reference.narrow = self.narrow and self.narrow_planner is not None
                 self._referenced = self.reference.filter(u_nom, scan, velocity=velocity, pose=pose,
                                                          scan_age=scan_age, now=now)
             result = super().filter(u_nom, scan, velocity=velocity, pose=pose, scan_age=scan_age, now=now)
         finally:
-            self._referenced, self._call_start = None, None
+            self._referenced = None
+            self._budget.end()
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
 
@@ -658,6 +669,11 @@ class MPCSafetyFilter(SafetyFilter):
         plan[1:, 3:] = commands
         return plan
 
+    @property
+    def budget(self) -> float:
+        """The compute budget of one call [s] (``math.inf``: none); see the class docstring."""
+        return self._budget.budget
+
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
@@ -691,25 +707,24 @@ class MPCSafetyFilter(SafetyFilter):
         narrow = self.narrow_planner
         if narrow is None:
             return self._planned(u_nom, view, velocity, period)
-        call_start = self._call_start if self._call_start is not None else self.clock()
         if self.narrow != self._in_narrow:
             body = narrow.body if self.narrow else self.body
             if body.barrier(view.points, self.margin, view.uncertainty) >= 0.0:
-                planner = self._planner(self.narrow, call_start)
+                planner = self._planner(self.narrow)
                 planner._commands, planner._splitting = None, False
                 result = planner._planned(u_nom, view, velocity, period)
                 if result.status in (FilterStatus.OK, FilterStatus.LATE):
                     self._in_narrow = self.narrow
                     return self._noted(result)
-        return self._noted(self._planner(self._in_narrow, call_start)._planned(u_nom, view, velocity, period))
+        return self._noted(self._planner(self._in_narrow)._planned(u_nom, view, velocity, period))
 
-    def _planner(self, narrow: bool, call_start: float) -> MPCSafetyFilter:
-        """This filter, or its narrow planner with this call's state (the last command, the flags, the budget)."""
+    def _planner(self, narrow: bool) -> MPCSafetyFilter:
+        """This filter, or its narrow planner with this call's state (the last command, the flags; the
+        budget is shared)."""
         planner = self.narrow_planner if narrow and self.narrow_planner is not None else self
         if planner is not self:
             planner._last_command, planner._called = self._last_command, self._called
             planner.passage = self.passage
-        planner._call_start = call_start
         return planner
 
     def _noted(self, result: FilterResult) -> FilterResult:
@@ -722,7 +737,6 @@ class MPCSafetyFilter(SafetyFilter):
 
     def _planned(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         """The verified plan of this filter's body that tracks ``u_nom`` (the nominal, or the reference's answer)."""
-        deadline = (self._call_start if self._call_start is not None else self.clock()) + self.budget
         start = self._last_command if velocity is None else velocity
         hold = min(self.horizon - 1, max(1, math.ceil(period / self.dt - 1e-6)))
         problem = self._problem(u_nom, view, start, hold)
@@ -752,14 +766,14 @@ class MPCSafetyFilter(SafetyFilter):
         warm = np.clip(candidate if shifted is None else self._realigned(shifted, previous), problem.lower,
                        problem.upper)
         split = self._splitting and isinstance(self.backend, DirectSQP)
-        outcome = self._solve(problem, warm, candidate, deadline, check, split=split)
+        outcome = self._solve(problem, warm, candidate, check, split=split)
         if split and outcome.commands is None and not outcome.abandoned:
             # No verified answer with a slack per point: one slack for every row, as in any other call.
-            retried = self._solve(problem, warm, candidate, deadline, check)
+            retried = self._solve(problem, warm, candidate, check)
             outcome = retried._replace(solve_time=outcome.solve_time + retried.solve_time)
             split = False
         if outcome.abandoned:
-            spent = self.clock() - (deadline - self.budget)
+            spent = self._budget.spent()
             return self._fallback(problem, shifted, "deadline",
                                   f"no verified plan within the compute budget of {1e3 * self.budget:.3g} ms "
                                   f"({1e3 * spent:.3g} ms spent; the solve was abandoned)", outcome.solve_time,
@@ -769,7 +783,7 @@ class MPCSafetyFilter(SafetyFilter):
         if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
             outcome = self._keep_shifted(problem, shifted, outcome)
         if outcome.check.clearance < -SPLIT_SLACK and not split:
-            outcome = self._split_slack(problem, outcome, candidate, deadline)
+            outcome = self._split_slack(problem, outcome, candidate)
         outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
         self._splitting = outcome.check.clearance < -SPLIT_SLACK
@@ -908,7 +922,7 @@ class MPCSafetyFilter(SafetyFilter):
                        problem.upper, problem.layout, self._step, soft, problem.layout.sample(start),
                        np.arange(used.size) if split else None)
 
-    def _split_slack(self, problem: MPCProblem, solved: _Solved, candidate: np.ndarray, deadline: float) -> _Solved:
+    def _split_slack(self, problem: MPCProblem, solved: _Solved, candidate: np.ndarray) -> _Solved:
         """An answer that needs slack, solved again with a slack of its own for each point.
 
         One slack relaxes every row alike: a plan that cannot keep one point (revealed late, too
@@ -919,7 +933,7 @@ class MPCSafetyFilter(SafetyFilter):
         """
         if not isinstance(self.backend, DirectSQP) or solved.commands is None:
             return solved
-        split = self._solve(problem, solved.commands, candidate, deadline, split=True)
+        split = self._solve(problem, solved.commands, candidate, split=True)
         if split.commands is None or split.check is None:
             return solved._replace(solve_time=solved.solve_time + split.solve_time)
         return split._replace(solve_time=solved.solve_time + split.solve_time)
@@ -931,7 +945,7 @@ class MPCSafetyFilter(SafetyFilter):
             return np.zeros_like(problem.radii)
         return np.clip((problem.radii - problem.floor) / soft, 0.0, 1.0)
 
-    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray, deadline: float,
+    def _solve(self, problem: MPCProblem, warm: np.ndarray, candidate: np.ndarray,
                candidate_check: PlanCheck | None = None, split: bool = False) -> _Solved:
         """Solve the NLP; swap points the answer violates into the slots and solve again.
 
@@ -952,7 +966,10 @@ class MPCSafetyFilter(SafetyFilter):
         # violation keeps its slot, so the working set grows monotonically until the slots run out.
         priority = np.full(problem.points.shape[0], np.inf)
         for round_index in range(self.config.max_rounds):
-            outcome = self.backend.solve(self._nlp(problem, used, commands, split), deadline, self.clock)
+            budget = self._budget
+            outcome = self.backend.solve(self._nlp(problem, used, commands, split), budget.solver_deadline(),
+                                         self.clock, step=budget.step)
+            budget.returned(outcome.longest_step)
             solve_time += outcome.solve_time
             if outcome.abandoned:
                 return _Solved(None, None, used, solve_time, "deadline", abandoned=True)

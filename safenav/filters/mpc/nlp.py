@@ -252,12 +252,14 @@ class CasadiNLP:
         self.name = "ipopt" if key.solver == "ipopt" else f"sqpmethod+{key.solver.partition(':')[2] or 'daqp'}"
         build_nlp(key)
 
-    def solve(self, nlp: PlanNLP, deadline: float = float("inf"), clock: Any = time.perf_counter) -> NLPOutcome:
-        """Solve ``nlp`` from its start; ``knots`` is ``None`` when casadi raised (the caller verifies)."""
+    def solve(self, nlp: PlanNLP, deadline: float = float("inf"), clock: Any = time.perf_counter,
+              step: float = 0.0) -> NLPOutcome:
+        """Solve ``nlp`` from its start, unless it would end after ``deadline`` lasting ``step`` [s]; ``knots``
+        is ``None`` when casadi raised (the caller verifies). The whole solve is one step."""
         from safenav.filters.mpc.sqp import NLPOutcome, knot_changes
 
         start = clock()
-        if start > deadline:
+        if start + step > deadline:
             return NLPOutcome(None, 0.0, 0.0, "deadline", 0, 0.0, abandoned=True)
         layout = nlp.layout
         key = self.key._replace(hold=layout.hold)
@@ -284,7 +286,7 @@ class CasadiNLP:
         try:
             result = solver(x0=x0, p=parameters, lbx=lower, ubx=upper, lbg=lbg, ubg=ubg)
         except RuntimeError as error:  # casadi raises RuntimeError for evaluation errors
-            return NLPOutcome(None, 0.0, 0.0, f"error: {error}", 0, clock() - start)
+            return NLPOutcome(None, 0.0, 0.0, f"error: {error}", 0, clock() - start, longest_step=clock() - start)
         elapsed = clock() - start
         try:
             stats = solver.stats()
@@ -294,5 +296,6 @@ class CasadiNLP:
         status = str(stats.get("return_status", "unknown"))
         iterations = int(stats.get("iter_count", 0))
         if x.shape != (2 * layout.n_knots + 2,) or not np.all(np.isfinite(x)):
-            return NLPOutcome(None, 0.0, 0.0, status, iterations, elapsed)
-        return NLPOutcome(x[:-2].reshape(-1, 2), float(x[-2]), float(x[-1]), status, iterations, elapsed)
+            return NLPOutcome(None, 0.0, 0.0, status, iterations, elapsed, longest_step=elapsed)
+        return NLPOutcome(x[:-2].reshape(-1, 2), float(x[-2]), float(x[-1]), status, iterations, elapsed,
+                          longest_step=elapsed)

@@ -35,7 +35,9 @@ step, are unchanged. Only the clearance rows that can bind are passed to the QP;
 row its answer violates is added and the QP solved again, so each step is the step of the QP
 with every row. The products of a step are einsum contractions, not BLAS calls (a product
 large enough for BLAS to thread can stall for milliseconds on a busy machine). The deadline is
-checked before every QP: a solve overruns it by at most one QP.
+checked before every step (an iteration, or another round of rows for its QP): a step is begun
+only when it can end before the deadline, lasting as long as the longest step so far
+(:class:`~safenav.filters.mpc.deadline.StepClock`).
 :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
 (the reference) or Ipopt.
 """
@@ -51,6 +53,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from safenav.filters.kernels import plain
+from safenav.filters.mpc.deadline import StepClock
 from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
 from safenav.filters.qp import QPBackend, QPData
@@ -154,6 +157,8 @@ class NLPOutcome(NamedTuple):
     """The deadline passed before the solve finished (``knots`` is ``None``)."""
     point_slacks: np.ndarray | None = None
     """``(K,)`` with slack groups, the slack relaxing each point's rows [m]; ``None``: :attr:`slack` for every row."""
+    longest_step: float = 0.0
+    """The longest time between two of the solver's checks of the clock, or its last check and its return [s]."""
 
 
 class PlanSolver(Protocol):
@@ -162,8 +167,9 @@ class PlanSolver(Protocol):
     name: str
 
     def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
-              clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
-        """Solve ``nlp`` from ``nlp.start``; give up when ``clock()`` passes ``deadline``."""
+              clock: Callable[[], float] = time.perf_counter, step: float = 0.0) -> NLPOutcome:
+        """Solve ``nlp`` from ``nlp.start``; give up rather than begin a step that, lasting ``step`` [s] or as
+        long as the longest step of this solve, would end after ``deadline`` (``abandoned``)."""
 
 
 def knot_changes(layout: PlanLayout, step: np.ndarray) -> np.ndarray:
@@ -278,8 +284,9 @@ class DirectSQP:
         return centres, centre_jacobian.reshape(2, centres.shape[1], -1)
 
     def solve(self, nlp: PlanNLP, deadline: float = float("inf"),
-              clock: Callable[[], float] = time.perf_counter) -> NLPOutcome:
+              clock: Callable[[], float] = time.perf_counter, step: float = 0.0) -> NLPOutcome:
         start_time = clock()
+        steps = StepClock(deadline, clock, step)
         layout = nlp.layout
         data = self.prepare(layout)
         n = layout.n_knots
@@ -330,8 +337,9 @@ class DirectSQP:
         previous_step: np.ndarray | None = None
         previous_change = math.inf
         for iterations in range(1, self.max_iter + 1):
-            if clock() > deadline:
-                return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True)
+            if steps.late():
+                return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True,
+                                  longest_step=steps.finished())
             if data.blocks:
                 poses, jacobian = data.model.evaluate(layout.expand(knots.reshape(n, 2)), nlp.velocity)
                 jacobian = np.add.reduceat(jacobian.reshape(n_knots, 3, -1, 2), layout.knots, axis=2)
@@ -362,8 +370,9 @@ class DirectSQP:
                 candidates = flat_values <= CHECK_WINDOW
             answer = None
             for round_index in range(MAX_ROW_ROUNDS + 1):
-                if round_index > 0 and clock() > deadline:
-                    return NLPOutcome(None, 0.0, 0.0, "deadline", iterations, clock() - start_time, abandoned=True)
+                if round_index > 0 and steps.late():
+                    return NLPOutcome(None, 0.0, 0.0, "deadline", iterations, clock() - start_time, abandoned=True,
+                                      longest_step=steps.finished())
                 if round_index == MAX_ROW_ROUNDS:
                     working |= candidates
                 rows = np.flatnonzero(working)
@@ -397,7 +406,7 @@ class DirectSQP:
                 answer = outcome.x
                 if answer is None:
                     return NLPOutcome(None, 0.0, 0.0, f"QP failed ({outcome.status})", iterations,
-                                      clock() - start_time)
+                                      clock() - start_time, longest_step=steps.finished())
                 # Every row linearised at the answer, through the centres' displacement.
                 move = answer[:2 * n] - knots
                 slacks = answer[slack_column]                                           # (M,): each point's
@@ -443,4 +452,4 @@ class DirectSQP:
                     step = None
             previous_step, previous_change = step, change
         return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time,
-                          point_slacks=point_slacks)
+                          point_slacks=point_slacks, longest_step=steps.finished())
