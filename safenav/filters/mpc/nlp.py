@@ -286,7 +286,8 @@ class CasadiNLP:
         try:
             result = solver(x0=x0, p=parameters, lbx=lower, ubx=upper, lbg=lbg, ubg=ubg)
         except RuntimeError as error:  # casadi raises RuntimeError for evaluation errors
-            return NLPOutcome(None, 0.0, 0.0, f"error: {error}", 0, clock() - start, longest_step=clock() - start)
+            elapsed = clock() - start
+            return NLPOutcome(None, 0.0, 0.0, f"error: {error}", 0, elapsed, longest_step=elapsed)
         elapsed = clock() - start
         try:
             stats = solver.stats()

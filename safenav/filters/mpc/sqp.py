@@ -36,8 +36,8 @@ row its answer violates is added and the QP solved again, so each step is the st
 with every row. The products of a step are einsum contractions, not BLAS calls (a product
 large enough for BLAS to thread can stall for milliseconds on a busy machine). The deadline is
 checked before every step (an iteration, or another round of rows for its QP): a step is begun
-only when it can end before the deadline, lasting as long as the longest step so far
-(:class:`~safenav.filters.mpc.deadline.StepClock`).
+only when it can end before the deadline, lasting as long as the caller's estimate (``step``)
+or the longest step so far (:class:`~safenav.filters.mpc.deadline.StepClock`).
 :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
 (the reference) or Ipopt.
 """
