@@ -14,10 +14,10 @@ ramping at its acceleration limits, the lidar's range noise), so that the time m
 is the filter's. Every preset, both filters (the CBF given the velocity) and the MPC tracking the CBF's
 answer (``reference="cbf"``, the MPC inside the deadlock escape: a CBF call in each call), ``dt`` 0.02,
 0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
-the MPC's compute budget (half a period, or ``--deadline-budget`` of it) and longer than the
+the filters' compute budget (half a period, or ``--deadline-budget`` of it) and longer than the
 period, the CPU time of the calls (which a busy machine's scheduling does not inflate), the
-MPC's calls that gave up at the deadline, and its solving calls apart; the straightforward
-baseline timed on the CBF's own scans of the same run.
+calls that gave up at the deadline, and the MPC's solving calls apart; the straightforward
+baseline (no budget) timed on the CBF's own scans of the same run.
 
 ``--reach`` times the CBF (given the velocity) by what lies within its reach, every preset, one
 fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ahead, a wall
@@ -322,19 +322,21 @@ class DeadlineRecorder:
 def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int,
                       budget_fraction: float | None = None) -> list[dict[str, Any]]:
     """Per robot, period and filter: every call's time in issue 18's closed loop (see the module docstring);
-    the MPC's compute budget ``budget_fraction * dt`` (default: the filter's)."""
+    the filters' compute budget ``budget_fraction * dt`` (default: theirs)."""
     rows = []
     settings = {} if budget_fraction is None else {"budget_fraction": budget_fraction}
 
-    def mpc(robot: RobotSpec, dt: float, **kwargs: Any) -> MPCSafetyFilter:
-        if budget_fraction is not None:
-            kwargs["budget"] = budget_fraction * dt
-        return MPCSafetyFilter(robot, dt, **kwargs)
+    def budgeted(kind: type[SafetyFilter]) -> Callable[..., SafetyFilter]:
+        def make(robot: RobotSpec, dt: float, **kwargs: Any) -> SafetyFilter:
+            if budget_fraction is not None:
+                kwargs["budget"] = budget_fraction * dt
+            return kind(robot, dt, **kwargs)
+        return make
 
+    cbf, mpc = budgeted(CBFSafetyFilter), budgeted(MPCSafetyFilter)
     # "mpc (cbf reference)": the MPC inside the escape (safenav.filters.ESCAPE_PRESETS), a CBF call in each call.
     makers: dict[str, Callable[[RobotSpec, float], SafetyFilter]] = {
-        "cbf": lambda robot, dt: CBFSafetyFilter(robot, dt), "mpc": mpc,
-        "mpc (cbf reference)": lambda robot, dt: mpc(robot, dt, reference="cbf")}
+        "cbf": cbf, "mpc": mpc, "mpc (cbf reference)": lambda robot, dt: mpc(robot, dt, reference="cbf")}
     for name in robots:
         robot = preset(name)
         for dt in dts:
@@ -441,7 +443,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     parser.add_argument("--deadline-dts", default=",".join(str(dt) for dt in DEADLINE_PERIODS),
                         help="control periods of the deadline scenario [s] (default: 0.02,0.05,0.1)")
     parser.add_argument("--deadline-budget", type=float, metavar="FRACTION",
-                        help="the MPC's compute budget in the deadline scenario, a fraction of dt (default: the "
+                        help="the filters' compute budget in the deadline scenario, a fraction of dt (default: the "
                              "filter's, 0.5)")
     parser.add_argument("--reach", action="store_true",
                         help="also time the CBF by what lies within its reach (open space to a wall beside)")

@@ -14,8 +14,8 @@ name           filter
 One concept per module: ``base`` (the call template, results, statuses and reasons),
 ``defaults`` (settings derived from the robot), ``body`` (disk or footprint cover),
 ``perception`` (points, unknown region, memory), ``rows`` (constraint families), ``qp``
-(QP back-ends), ``cbf``, ``mpc/`` (config, plan model, NLP, filter), ``zones``, ``contract``
-(:func:`check_filter`, the contract every filter meets).
+(QP back-ends), ``deadline`` (a call's compute budget), ``cbf``, ``mpc/`` (config, plan model, NLP,
+filter), ``zones``, ``contract`` (:func:`check_filter`, the contract every filter meets).
 """
 
 from __future__ import annotations

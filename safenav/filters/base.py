@@ -13,7 +13,9 @@ robot's lidar).
 period and scan ages, the odometry that carries remembered points, the perception
 (:mod:`safenav.filters.perception`), then the filter's own :meth:`SafetyFilter._filter`,
 then the bookkeeping. Subclasses implement ``_filter`` and may use the hooks
-:meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; none overrides ``filter``.
+:meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; a filter with a compute budget
+(:mod:`safenav.filters.deadline`) sets ``_budget``, and the template counts it from the call's start
+(the MPC overrides ``filter`` only to begin it before its reference's call).
 
 Longer than most modules because the call template owns every check a filter must make before and
 after its step (input, clock, staleness, late calls, base lag, deadlock, braking), so that no filter
@@ -37,6 +39,7 @@ from safenav import _checks
 from safenav.errors import InvalidConfig, InvalidScanType
 from safenav.filters import heap, kernels
 from safenav.filters.body import BodyModel, inscribed_radius
+from safenav.filters.deadline import CallBudget
 from safenav.filters.perception import (
     SEEN_FREE_MAX_TRAVEL,
     SEEN_FREE_TRAVEL,
@@ -462,6 +465,8 @@ class SafetyFilter(abc.ABC):
         self._returned: collections.deque[Period] = collections.deque(maxlen=COMMAND_HISTORY)
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
+        #: The compute budget of a call (:mod:`safenav.filters.deadline`), for filters that have one.
+        self._budget: CallBudget | None = None
         #: Set by a caller while the robot drives through a passage the body fits with
         #: :attr:`corridor_half_width` (the escape, through a gap): a filter that trades room for
         #: steering (the CBF's look-ahead) then uses its narrow settings. It never weakens a guarantee.
@@ -596,19 +601,27 @@ class SafetyFilter(abc.ABC):
             InvalidScanType: ``scan`` is not a LaserScan (or a sequence of them).
         """
         start = time.perf_counter()
-        nominal = as_command(u_nom, "u_nom")
-        scans = self._match(as_scans(scan))
-        current = None if velocity is None else as_command(velocity, "velocity")
-        period, clock_note = self._clock(now)
-        base_note = self._check_base(current, period if period is not None else self.dt)
-        if self._called:   # the last command, held since the previous call, and the velocities measured about it
-            self._returned.append(self._period_since(period, current))
-        self._carry(period if period is not None else self.dt, current, pose)
-        result = self._screened(nominal, scans, current, scan_age, now, period,
-                                "; ".join(note for note in (clock_note, base_note) if note))
-        result = self._watch_progress(result)
-        self._last_command = np.array(result.u, dtype=float)
-        self._called = True
+        budget = self._budget
+        began = budget is not None and budget.start is None     # (a filter may begin it earlier in its call)
+        if began:
+            budget.begin()
+        try:
+            nominal = as_command(u_nom, "u_nom")
+            scans = self._match(as_scans(scan))
+            current = None if velocity is None else as_command(velocity, "velocity")
+            period, clock_note = self._clock(now)
+            base_note = self._check_base(current, period if period is not None else self.dt)
+            if self._called:   # the last command, held since the previous call, and the velocities measured then
+                self._returned.append(self._period_since(period, current))
+            self._carry(period if period is not None else self.dt, current, pose)
+            result = self._screened(nominal, scans, current, scan_age, now, period,
+                                    "; ".join(note for note in (clock_note, base_note) if note))
+            result = self._watch_progress(result)
+            self._last_command = np.array(result.u, dtype=float)
+            self._called = True
+        finally:
+            if began:
+                budget.end()
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
 

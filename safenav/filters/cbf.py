@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -20,6 +22,7 @@ from safenav.filters import kernels
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
+from safenav.filters.deadline import CallBudget, StepClock
 from safenav.filters.defaults import (
     default_gamma,
     default_margin,
@@ -29,7 +32,7 @@ from safenav.filters.defaults import (
     reaction_time,
 )
 from safenav.filters.perception import nearest_per_bin
-from safenav.filters.qp import QPBackend, QPData, make_backend
+from safenav.filters.qp import QPBackend, QPData, QPOutcome, make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -121,6 +124,11 @@ class CBFConfig:
             numba when it is installed, ``pip install "safenav[fast]"``), ``"numba"`` (compiled; raises
             :class:`~safenav.errors.MissingDependency` without numba) or ``"numpy"`` (the reference;
             :mod:`safenav.filters.kernels`). The same rows to rounding either way.
+        budget: compute budget of one call [s]; default ``math.inf`` (none: a call's QPs are few and short,
+            and without a budget the answers do not depend on the machine's load). With one (the MPC's
+            default is ``BUDGET_FRACTION * dt``, :data:`~safenav.filters.defaults.BUDGET_FRACTION` = 0.5),
+            a QP that could not end within it (:mod:`safenav.filters.deadline`) is not begun: the filter
+            brakes at the acceleration limits (status ``FALLBACK``, reason ``deadline``).
     """
 
     gamma: float | None = None
@@ -146,6 +154,7 @@ class CBFConfig:
     compensate_latency: bool = True
     min_obstacle_width: float | None = None
     kernels: str = "auto"
+    budget: float | None = None
 
     def __post_init__(self) -> None:
         name = "CBFConfig."
@@ -181,6 +190,8 @@ class CBFConfig:
         if self.min_obstacle_width is not None:
             _checks.positive(name + "min_obstacle_width", self.min_obstacle_width)
         _checks.choice("CBF kernels", self.kernels, kernels.KERNELS)
+        if self.budget is not None:
+            _checks.number(name + "budget", self.budget, low=0.0, low_open=True, finite=False)
 
     def resolve(self, robot: RobotSpec, dt: float) -> CBFConfig:
         """This config with every robot-derived default filled in (see :mod:`safenav.filters.defaults`)."""
@@ -201,6 +212,7 @@ class CBFConfig:
                 < body_model(self.body, robot, self.n_disks).half_width) else None,
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
+            budget=self.budget if self.budget is not None else math.inf,
         )
 
 
@@ -221,6 +233,10 @@ class _Shape(NamedTuple):
     extent: tuple[float, float]         # bounds of the cut before any trigonometry [m]
     control: np.ndarray | None = None   # (D, 2) the disks' control points [m] (disk bodies; the compiled rows)
     offsets: np.ndarray | None = None   # (D,) radius + look-ahead + margin of each disk [m] (likewise)
+
+
+class _OutOfTime(Exception):
+    """The next QP of a call could not end within its compute budget (caught within the call: it brakes)."""
 
 
 class _Problem(NamedTuple):
@@ -341,15 +357,27 @@ class CBFSafetyFilter(SafetyFilter):
     row until none is (constraint generation), so the answer is that of the QP with every
     row of every point. Every answer is verified against every row.
 
+    **Deadline.** A call may have a compute budget (``budget`` [s], counted from the call's start;
+    none by default: a call solves a few small QPs, and without a budget the answers do not depend
+    on the machine's load). With one, before each QP (the first, every round of constraint
+    generation, every slack tier) the filter checks that the QP, lasting as long as the longest
+    QP of its recent calls or of this call, can end before the budget less a reserve for the
+    verification and the result (:mod:`safenav.filters.deadline`); when it cannot, it brakes at
+    the acceleration limits (status ``FALLBACK``, reason ``deadline``). Its answers are otherwise
+    those without a budget; the fast path solves nothing and is never cut short.
+
     Args:
         robot: the robot to protect.
         dt: control period [s]: the longest time a command is held (at most 1 s).
         config: settings; keyword arguments override its fields.
+        clock: the clock the compute budget is measured with [s] (default ``time.perf_counter``;
+            a simulated clock in tests).
     """
 
     name = "cbf"
 
-    def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: CBFConfig | None = None, **overrides: Any):
+    def __init__(self, robot: RobotSpec, dt: float = 0.05, *, config: CBFConfig | None = None,
+                 clock: Callable[[], float] | None = None, **overrides: Any):
         base_config = CBFConfig(**{**(config.__dict__ if config else {}), **overrides})
         dt = _checks.duration("dt", dt, high=1.0)
         self.config = base_config.resolve(robot, dt)
@@ -375,6 +403,10 @@ class CBFSafetyFilter(SafetyFilter):
             self._shapes["narrow"] = self._shape_of(narrow, 0.0)
         self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
+        #: The clock the compute budget is measured with [s] (default ``time.perf_counter``).
+        self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
+        self._budget = CallBudget(cfg.budget, self.clock)
+        self._steps: StepClock | None = None     # this call's QPs against the budget
         self._ready(cfg.kernels)
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
@@ -774,7 +806,13 @@ class CBFSafetyFilter(SafetyFilter):
 
     # ------------------------------------------------------------------ filtering
 
+    @property
+    def budget(self) -> float:
+        """The compute budget of one call [s] (``math.inf``: none); see the class docstring."""
+        return self._budget.budget
+
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
+        self._steps = None      # this call's QPs are timed afresh
         wanted = self._wanted()
         if wanted != "long" and self._shape_name == "long":
             # A shorter look-ahead never lowers a barrier (the control point moves back by the difference and
@@ -833,13 +871,25 @@ class CBFSafetyFilter(SafetyFilter):
         """The answer with the rows of the current look-ahead."""
         problem = self._constraints(view, velocity, period, u_nom=u_nom)
         rows = problem.rows
-        points = problem.points
         details: dict[str, Any] = dict(min_barrier=problem.min_barrier, clearance=problem.clearance)
         lower, upper = problem.limits
         if (lower[0] <= u_nom[0] <= upper[0] and lower[1] <= u_nom[1] <= upper[1]
                 and (rows.G @ self._lifted(u_nom, problem) <= rows.h).all()):
             return FilterResult(u=u_nom, u_nom=u_nom, status=FilterStatus.OK, **details)
+        try:
+            return self._solved(u_nom, view, velocity, period, problem, details)
+        except _OutOfTime:
+            return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "deadline",
+                               f"no answer within the compute budget of {1e3 * self.budget:.3g} ms "
+                               f"({1e3 * self._budget.spent():.3g} ms spent); braking at the acceleration limits",
+                               solver=self.backend.name, period=period, **details)
 
+    def _solved(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float,
+                problem: _Problem, details: dict[str, Any]) -> FilterResult:
+        """The answer of the QP (constraint generation, slack tiers), verified; ``u_nom`` is not safe as it is.
+        Raises :class:`_OutOfTime` when the next QP cannot end within the call's budget."""
+        rows, points = problem.rows, problem.points
+        lower, upper = problem.limits
         candidate = np.flatnonzero(self._prune(rows, problem))
         if candidate.size == 0:
             # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
@@ -929,6 +979,19 @@ class CBFSafetyFilter(SafetyFilter):
             solve_time=solve_time, **details,
         )
 
+    def _solve_qp(self, qp: QPData) -> QPOutcome:
+        """``qp`` solved by the back-end, unless, lasting as long as the longest QP of the recent calls or of
+        this call, it could not end within the call's budget: then :class:`_OutOfTime`."""
+        budget = self._budget
+        if self._steps is None:
+            self._steps = StepClock(budget.solver_deadline(), self.clock, budget.step)
+        if self._steps.late():
+            budget.returned(self._steps.finished())
+            raise _OutOfTime
+        outcome = self.backend.solve(qp)
+        budget.returned(self._steps.finished())
+        return outcome
+
     def _solve_generating(self, u_nom: np.ndarray, rows: families.Rows, working: np.ndarray, problem: _Problem,
                           slack: int | None = None) -> tuple[np.ndarray | None, np.ndarray, float, str]:
         """Solve over the rows in ``working``, adding violated rows until none is (constraint generation).
@@ -944,7 +1007,7 @@ class CBFSafetyFilter(SafetyFilter):
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
-            outcome = self.backend.solve(self._qp(u_nom, rows.take(working), problem, slack=slack))
+            outcome = self._solve_qp(self._qp(u_nom, rows.take(working), problem, slack=slack))
             solve_time += outcome.solve_time
             z = outcome.x
             if z is None:
@@ -962,7 +1025,7 @@ class CBFSafetyFilter(SafetyFilter):
             return True
         qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((self._abs_rows.G, hard.G)),
                     np.concatenate((self._abs_rows.h, hard.h)), problem.lower, problem.upper)
-        z = self.backend.solve(qp).x
+        z = self._solve_qp(qp).x
         return z is not None and bool(np.all(hard.G @ z <= hard.h + VERIFY_TOLERANCE))
 
     @staticmethod

@@ -12,6 +12,7 @@ import math
 from safenav.robot import RobotSpec
 
 __all__ = [
+    "BUDGET_FRACTION",
     "SAFETY_DISTANCE",
     "STEERING_PREFERENCE",
     "default_gamma",
@@ -24,6 +25,9 @@ __all__ = [
 
 SAFETY_DISTANCE = 0.02
 """The part of the default margin that is a plain safety distance [m]."""
+
+BUDGET_FRACTION = 0.5
+"""Default compute budget of one filter call, as a share of the period ``dt``."""
 
 STEERING_PREFERENCE = 0.2
 """Cost of a yaw-rate change relative to a speed change, both as fractions of their limits:

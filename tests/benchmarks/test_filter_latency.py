@@ -72,4 +72,4 @@ def test_the_deadline_scenario_times_every_filter_at_the_budget_asked(tmp_path, 
         assert row["budget_s"] == pytest.approx(0.005) and row["budget_fraction"] == 0.1
         assert row["calls"]["n"] == 2 * 20 == sum(row["statuses"].values())
         assert 0 <= row["deadline_fallbacks"] <= row["statuses"].get("fallback", 0)
-    assert rows[0]["deadline_fallbacks"] == 0 and "baseline" in rows[0]
+    assert "baseline" in rows[0]

@@ -14,7 +14,7 @@ import pytest
 
 from safenav import Pose2D, preset, unicycle_step
 from safenav.filters import FilterStatus, MPCSafetyFilter
-from safenav.filters.mpc.deadline import TAIL_WINDOW
+from safenav.filters.deadline import TAIL_WINDOW
 from safenav.filters.qp import DirectDAQP, QPData, QPOutcome
 from safenav.synthetic import Scene, synthetic_scan, wall
 

@@ -8,13 +8,11 @@ module          what it owns
                 base follows commands), :class:`MPCProblem`, checks
 ``nlp``         casadi: the plan model and its Jacobian (:class:`PlanModel`), the reference NLP
 ``sqp``         the NLP (:class:`PlanNLP`) and its fast solver (:class:`DirectSQP`)
-``deadline``    the compute budget of a call (:class:`CallBudget`) and of a solver's steps
 ``filter``      :class:`MPCSafetyFilter`
 ==============  ================================================================
 """
 
 from safenav.filters.mpc.config import MPCConfig, available_mpc_solvers
-from safenav.filters.mpc.deadline import CallBudget
 from safenav.filters.mpc.filter import MPCSafetyFilter
 from safenav.filters.mpc.nlp import CasadiNLP, PlanModel
 from safenav.filters.mpc.plan import BaseModel, MPCProblem, PlanCheck, PlanLayout
@@ -22,7 +20,6 @@ from safenav.filters.mpc.sqp import DirectSQP, NLPOutcome, PlanCost, PlanNLP, Pl
 
 __all__ = [
     "BaseModel",
-    "CallBudget",
     "CasadiNLP",
     "DirectSQP",
     "MPCConfig",

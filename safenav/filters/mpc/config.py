@@ -10,7 +10,7 @@ import casadi
 
 from safenav import _checks
 from safenav.errors import UnknownName
-from safenav.filters.defaults import default_margin, default_weights
+from safenav.filters.defaults import BUDGET_FRACTION, default_margin, default_weights
 from safenav.filters.kernels import KERNELS
 from safenav.filters.qp import available_solvers
 from safenav.robot import RobotSpec
@@ -31,8 +31,6 @@ __all__ = [
 DEFAULT_HORIZON_TIME = 1.0
 #: Commands the optimiser chooses at most; a longer plan (a short ``dt``) interpolates between them.
 DEFAULT_COMMANDS = 20
-#: Default compute budget of one call, as a share of the period ``dt``.
-BUDGET_FRACTION = 0.5
 #: Default point slots of the direct SQP and of the casadi solvers.
 DIRECT_POINTS, CASADI_POINTS = 64, 32
 #: casadi QP plugins the reference ``sqpmethod`` can use here, in order of preference.

@@ -21,9 +21,9 @@ from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
+from safenav.filters.deadline import CallBudget
 from safenav.filters.kernels import plain
 from safenav.filters.mpc.config import MPCConfig
-from safenav.filters.mpc.deadline import CallBudget
 from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
 from safenav.filters.mpc.plan import (
     BaseModel,
@@ -196,7 +196,7 @@ class MPCSafetyFilter(SafetyFilter):
     long as the longest step of the recent calls (at most a quarter of the budget) or of this
     call, before the budget less a reserve for the verification and the result (as long as the
     longest the recent calls' took, at most a quarter of the budget;
-    :mod:`~safenav.filters.mpc.deadline`). When it cannot, the solve is abandoned (the next call
+    :mod:`~safenav.filters.deadline`). When it cannot, the solve is abandoned (the next call
     starts afresh, on time) and the filter follows the next command of its last verified plan,
     which ends stopped (status ``FALLBACK``, reason ``deadline``); without one it brakes at the
     acceleration limits. That plan was verified against the points seen then: checked against
@@ -319,7 +319,7 @@ class MPCSafetyFilter(SafetyFilter):
                 time_constant=cfg.time_constant, max_gap=cfg.max_gap, side_tolerance=cfg.side_tolerance,
                 scan_timeout=cfg.scan_timeout, compensate_latency=cfg.compensate_latency,
                 memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time,
-                kernels=cfg.kernels)
+                kernels=cfg.kernels, clock=clock)
         self._referenced: FilterResult | None = None    # the reference's answer of this call
         #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock
         #: are this filter's), used while :attr:`narrow` asks for it, else ``None``.
@@ -461,7 +461,7 @@ class MPCSafetyFilter(SafetyFilter):
         ``u_nom``, and its time and compute budget include the reference's call.
         """
         start = time.perf_counter()
-        self._budget.begin()    # the budget covers the whole call, the reference's too
+        self._budget.begin()    # the budget covers the whole call, the reference's too (the template then keeps it)
         try:
             if self.reference is not None:
                 self.reference.passage = self.passage

@@ -37,7 +37,7 @@ with every row. The products of a step are einsum contractions, not BLAS calls (
 large enough for BLAS to thread can stall for milliseconds on a busy machine). The deadline is
 checked before every step (an iteration, or another round of rows for its QP): a step is begun
 only when it can end before the deadline, lasting as long as the caller's estimate (``step``)
-or the longest step so far (:class:`~safenav.filters.mpc.deadline.StepClock`).
+or the longest step so far (:class:`~safenav.filters.deadline.StepClock`).
 :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
 (the reference) or Ipopt.
 """
@@ -52,8 +52,8 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
+from safenav.filters.deadline import StepClock
 from safenav.filters.kernels import plain
-from safenav.filters.mpc.deadline import StepClock
 from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
 from safenav.filters.qp import QPBackend, QPData

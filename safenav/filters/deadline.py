@@ -1,8 +1,9 @@
-"""The MPC's compute budget: when a call must end, and when its solver must stop to let it.
+"""The filters' compute budget: when a call must end, and when its solver must stop to let it.
 
-A call's budget counts from the call's start (the perception, the reference's call, the
+A call's budget counts from the call's start (the perception, the MPC's reference's call, the
 solve, the verification of the answer and the result). The solver works in *steps* (an SQP
-iteration, or one more round of rows for its QP), checking the clock before each: it begins a
+iteration, or one more round of rows for its QP; for the CBF, each QP), checking the clock
+before each: it begins a
 step only when the step can end before the solver's deadline, taking the step to last as
 long as the longest step of the filter's last :data:`TAIL_WINDOW` solving calls or of this
 call so far (:attr:`CallBudget.step`). The solver's deadline is the call's end less a
