@@ -75,10 +75,8 @@ class CallBudget:
 
     @property
     def deadline(self) -> float:
-        """When the current call must end [s] (a call not begun begins now)."""
-        if self.start is None:
-            self.start = self.clock()
-        return self.start + self.budget
+        """When the current call must end [s] (outside a call: ``budget`` from now)."""
+        return (self.start if self.start is not None else self.clock()) + self.budget
 
     def solver_deadline(self) -> float:
         """When the solver's last step must have ended [s]: :attr:`deadline` less :attr:`reserve`."""
