@@ -14,10 +14,11 @@ ramping at its acceleration limits, the lidar's range noise), so that the time m
 is the filter's. Every preset, both filters (the CBF given the velocity) and the MPC tracking the CBF's
 answer (``reference="cbf"``, the MPC inside the deadlock escape: a CBF call in each call), ``dt`` 0.02,
 0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
-the filters' compute budget (half a period, or ``--deadline-budget`` of it) and longer than the
-period, the CPU time of the calls (which a busy machine's scheduling does not inflate), the
-calls that gave up at the deadline, and the MPC's solving calls apart; the straightforward
-baseline (no budget) timed on the CBF's own scans of the same run.
+half a period (the MPC's default compute budget; with ``--deadline-budget``, that share of the
+period, which both filters are then given) and longer than the period, the CPU time of the calls
+(which a busy machine's scheduling does not inflate), the calls that gave up at the deadline, and
+the MPC's solving calls apart; the straightforward baseline (no budget) timed on the CBF's own
+scans of the same run.
 
 ``--reach`` times the CBF (given the velocity) by what lies within its reach, every preset, one
 fixed scan each: nothing in range, a 4 m room, a wall 2 m ahead, a wall 0.6 m ahead, a wall
@@ -60,6 +61,7 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
 
 from benchmarks.common import markdown_table, summary, write_json
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter, SafetyFilter, available_solvers
+from safenav.filters.defaults import BUDGET_FRACTION
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import PRESET_NAMES, LidarSpec, RobotSpec, preset
 from safenav.scan import LaserScan
@@ -340,7 +342,7 @@ def deadline_scenario(robots: Sequence[str], dts: Sequence[float], seed: int,
     for name in robots:
         robot = preset(name)
         for dt in dts:
-            budget = mpc(robot, dt).budget
+            budget = (budget_fraction if budget_fraction is not None else BUDGET_FRACTION) * dt   # the yardstick
             for filter_name, maker in makers.items():
                 recorder = DeadlineRecorder(keep_scans=400 if filter_name == "cbf" else 0)
                 maker(robot, dt)    # builds (and caches) what is built once per shape, outside the timed calls

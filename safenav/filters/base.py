@@ -13,9 +13,9 @@ robot's lidar).
 period and scan ages, the odometry that carries remembered points, the perception
 (:mod:`safenav.filters.perception`), then the filter's own :meth:`SafetyFilter._filter`,
 then the bookkeeping. Subclasses implement ``_filter`` and may use the hooks
-:meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; a filter with a compute budget
-(:mod:`safenav.filters.deadline`) sets ``_budget``, and the template counts it from the call's start
-(the MPC overrides ``filter`` only to begin it before its reference's call).
+:meth:`SafetyFilter._on_reset` and :meth:`SafetyFilter._on_brake`; the template counts a filter's
+compute budget (:mod:`safenav.filters.deadline`) from the call's start (the MPC overrides ``filter``
+only to begin it before its reference's call).
 
 Longer than most modules because the call template owns every check a filter must make before and
 after its step (input, clock, staleness, late calls, base lag, deadlock, braking), so that no filter
@@ -29,7 +29,7 @@ import collections
 import enum
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -393,6 +393,10 @@ class SafetyFilter(abc.ABC):
             :class:`Deadlock` [s].
         min_obstacle_width: the narrowest obstacle [m] to see in time to brake clear of; ``None``
             for what the lidars resolve where the robot must see one (:attr:`smallest_obstacle`).
+        budget: compute budget of one call [s] (``math.inf``: none), counted from the call's start
+            (:mod:`safenav.filters.deadline`; the filter decides what it cuts short).
+        clock: the clock the budget is measured with [s] (default ``time.perf_counter``; a simulated
+            clock in tests).
     """
 
     name = "filter"
@@ -405,7 +409,8 @@ class SafetyFilter(abc.ABC):
                  compensate_latency: bool = True, max_gap: float = math.radians(5.0),
                  side_tolerance: float = math.radians(5.0), memory_range: float | None = None,
                  memory_capacity: int = 4000, time_constant: float = 0.0, deadlock_time: float = 1.5,
-                 min_obstacle_width: float | None = None) -> None:
+                 min_obstacle_width: float | None = None, budget: float = math.inf,
+                 clock: Callable[[], float] | None = None) -> None:
         if not isinstance(robot, RobotSpec):
             raise InvalidConfig(f"robot must be a RobotSpec (see safenav.robot.preset), got {robot!r}")
         self.robot = robot
@@ -465,8 +470,9 @@ class SafetyFilter(abc.ABC):
         self._returned: collections.deque[Period] = collections.deque(maxlen=COMMAND_HISTORY)
         self._called = False
         self._recalled = (np.empty((0, 2)), np.empty(0))
-        #: The compute budget of a call (:mod:`safenav.filters.deadline`), for filters that have one.
-        self._budget: CallBudget | None = None
+        #: The clock the compute budget is measured with [s].
+        self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
+        self._budget = CallBudget(budget, self.clock)
         #: Set by a caller while the robot drives through a passage the body fits with
         #: :attr:`corridor_half_width` (the escape, through a gap): a filter that trades room for
         #: steering (the CBF's look-ahead) then uses its narrow settings. It never weakens a guarantee.
@@ -602,7 +608,7 @@ class SafetyFilter(abc.ABC):
         """
         start = time.perf_counter()
         budget = self._budget
-        began = budget is not None and budget.start is None     # (a filter may begin it earlier in its call)
+        began = budget.start is None     # (a filter may begin it earlier in its call)
         if began:
             budget.begin()
         try:
@@ -624,6 +630,11 @@ class SafetyFilter(abc.ABC):
                 budget.end()
         object.__setattr__(result, "filter_time", time.perf_counter() - start)
         return result
+
+    @property
+    def budget(self) -> float:
+        """The compute budget of one call [s] (``math.inf``: none)."""
+        return self._budget.budget
 
     def _watch_progress(self, result: FilterResult) -> FilterResult:
         """Count how long the nominal has asked to move without progress; report a deadlock past the limit."""

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -22,7 +21,7 @@ from safenav.filters import kernels
 from safenav.filters import rows as families
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
 from safenav.filters.body import BodyModel
-from safenav.filters.deadline import CallBudget, StepClock
+from safenav.filters.deadline import StepClock
 from safenav.filters.defaults import (
     default_gamma,
     default_margin,
@@ -391,7 +390,8 @@ class CBFSafetyFilter(SafetyFilter):
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
-                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width)
+                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width,
+                         budget=cfg.budget, clock=clock)
         self.gamma = float(cfg.gamma)
         self.far_gamma = float(cfg.far_gamma)
         self._P = np.diag([cfg.weights[0], cfg.weights[1], AUX_REGULARISATION, AUX_REGULARISATION])
@@ -403,9 +403,6 @@ class CBFSafetyFilter(SafetyFilter):
             self._shapes["narrow"] = self._shape_of(narrow, 0.0)
         self._use("long")
         self.backend: QPBackend = make_backend(cfg.solver)
-        #: The clock the compute budget is measured with [s] (default ``time.perf_counter``).
-        self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
-        self._budget = CallBudget(cfg.budget, self.clock)
         self._steps: StepClock | None = None     # this call's QPs against the budget
         self._ready(cfg.kernels)
 
@@ -805,11 +802,6 @@ class CBFSafetyFilter(SafetyFilter):
         return self._qp(u_nom, rows, problem).problem()
 
     # ------------------------------------------------------------------ filtering
-
-    @property
-    def budget(self) -> float:
-        """The compute budget of one call [s] (``math.inf``: none); see the class docstring."""
-        return self._budget.budget
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
         self._steps = None      # this call's QPs are timed afresh

@@ -48,18 +48,16 @@ class CallBudget:
         self.clock = clock
         self.start: float | None = None
         """When the current call began [s] (``None`` between calls)."""
-        self.step = 0.0
-        """How long the solver's next step is taken to last [s]: the longest of the recent calls' (at most
-        :data:`RESERVE_SHARE` of the budget) or of the current call so far."""
         self._returned: float | None = None
-        self._longest = 0.0
+        self._recent = 0.0      # the longest step of the recent calls, at most RESERVE_SHARE of the budget
+        self._longest = 0.0     # the longest step of the current call
         self._steps: deque[float] = deque(maxlen=TAIL_WINDOW)
         self._tails: deque[float] = deque(maxlen=TAIL_WINDOW)
 
     def begin(self) -> None:
         """A call begins now."""
         self.start, self._returned, self._longest = self.clock(), None, 0.0
-        self.step = min(max(self._steps, default=0.0), RESERVE_SHARE * self.budget)
+        self._recent = min(max(self._steps, default=0.0), RESERVE_SHARE * self.budget)
 
     def end(self) -> None:
         """The call ends now: if the solver ran, its longest step and the time since its last return are kept."""
@@ -67,6 +65,12 @@ class CallBudget:
             self._tails.append(max(0.0, self.clock() - self._returned))
             self._steps.append(self._longest)
         self.start, self._returned = None, None
+
+    @property
+    def step(self) -> float:
+        """How long the solver's next step is taken to last [s]: the longest of the recent calls' (at most
+        :data:`RESERVE_SHARE` of the budget) or of the current call so far."""
+        return max(self._recent, self._longest)
 
     @property
     def reserve(self) -> float:
@@ -89,7 +93,6 @@ class CallBudget:
     def returned(self, longest_step: float) -> None:
         """The solver returned now; its longest step took ``longest_step`` [s] (measured, not estimated)."""
         self._longest = max(self._longest, float(longest_step))
-        self.step = max(self.step, self._longest)
         self._returned = self.clock()
 
 

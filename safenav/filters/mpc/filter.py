@@ -21,7 +21,6 @@ from safenav.errors import InvalidConfig
 from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _frozen, _replace, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.cbf import CBFSafetyFilter
-from safenav.filters.deadline import CallBudget
 from safenav.filters.kernels import plain
 from safenav.filters.mpc.config import MPCConfig
 from safenav.filters.mpc.nlp import CasadiNLP, NLPKey, PlanModel
@@ -273,10 +272,9 @@ class MPCSafetyFilter(SafetyFilter):
                          compensate_latency=cfg.compensate_latency, max_gap=cfg.max_gap,
                          side_tolerance=cfg.side_tolerance, memory_range=cfg.memory_range,
                          memory_capacity=cfg.memory_capacity, time_constant=cfg.time_constant,
-                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width)
+                         deadlock_time=cfg.deadlock_time, min_obstacle_width=cfg.min_obstacle_width,
+                         budget=cfg.budget, clock=clock)
         dt = self.dt
-        self.clock: Callable[[], float] = clock if clock is not None else time.perf_counter
-        self._budget = CallBudget(cfg.budget, self.clock)
         self.model = BaseModel(dt, cfg.time_constant)
         self._step = np.array([robot.a_max, robot.alpha_max]) * dt
         self.speed = max(robot.v_max, -robot.v_min)
@@ -669,11 +667,6 @@ class MPCSafetyFilter(SafetyFilter):
         plan[1:, 3:] = commands
         return plan
 
-    @property
-    def budget(self) -> float:
-        """The compute budget of one call [s] (``math.inf``: none); see the class docstring."""
-        return self._budget.budget
-
     # ------------------------------------------------------------------ filtering
 
     def _filter(self, u_nom: np.ndarray, view: View, velocity: np.ndarray | None, period: float) -> FilterResult:
@@ -965,8 +958,8 @@ class MPCSafetyFilter(SafetyFilter):
         # Smallest row value each point has had in any answer so far: a point that was ever near a
         # violation keeps its slot, so the working set grows monotonically until the slots run out.
         priority = np.full(problem.points.shape[0], np.inf)
+        budget = self._budget
         for round_index in range(self.config.max_rounds):
-            budget = self._budget
             outcome = self.backend.solve(self._nlp(problem, used, commands, split), budget.solver_deadline(),
                                          self.clock, step=budget.step)
             budget.returned(outcome.longest_step)
