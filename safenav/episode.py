@@ -135,7 +135,8 @@ class EpisodeMetrics:
         goal_progress: start distance to the goal minus the final one [m] (``None`` without a goal).
         stuck_time: time during which the nominal asked to move but the robot did not [s]
             (:attr:`EpisodeConfig.stuck_speed`).
-        fallbacks: periods in which the filter braked because its optimiser failed.
+        fallbacks: periods in which the filter braked, or followed its stored plan, because its optimiser
+            failed or could not answer within its compute budget (status ``fallback``).
         statuses: how many periods ended with each filter status.
         filter_times: wall time of every filter call [s] (empty without a filter).
         deadlock_time: total length of the deadlocks that lasted at least

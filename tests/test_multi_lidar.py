@@ -14,6 +14,7 @@ import pytest
 
 from safenav import InvalidConfig, Pose2D, preset
 from safenav.episode import EpisodeConfig, run_episode
+from safenav.experiments.runner import reproducible_settings
 from safenav.filters import make_filter
 from safenav.reference import make_policy
 from safenav.scenarios import RANDOM_WALK_HOLD, scenario
@@ -150,7 +151,7 @@ def test_the_filter_sees_the_rear_lidar_and_lets_the_robot_back_up_to_a_wall(fil
     """Backing up sweeps the rear-right, which only the extra lidar sees: without its scan the filter holds still."""
     world = World("wall_behind", (Wall((-2.0 - 0.5 * WALL_THICKNESS, -3.0), (-2.0 - 0.5 * WALL_THICKNESS, 3.0)),),
                   start=Pose2D(0.0, 0.0, 0.0))
-    safety_filter = make_filter(filter_name, CORNERS, DT, **({"budget": math.inf} if filter_name == "mpc" else {}))
+    safety_filter = make_filter(filter_name, CORNERS, DT, **reproducible_settings(filter_name))
     policy = Recording(-0.3)
     metrics = run_episode(world, CORNERS, policy, safety_filter, config=EpisodeConfig(duration=12.0), seed=0).metrics
     assert not metrics.collided and metrics.fallbacks == 0
@@ -172,7 +173,7 @@ def test_a_two_lidar_robot_random_walks_in_clutter_without_collisions(filter_nam
     world = task.world(seed)
     # The MPC without its compute budget, so the episode does not depend on the machine's load
     # (as in tests/test_scenarios.py).
-    safety_filter = make_filter(filter_name, CORNERS, DT, **({"budget": math.inf} if filter_name == "mpc" else {}))
+    safety_filter = make_filter(filter_name, CORNERS, DT, **reproducible_settings(filter_name))
     policy = make_policy("random_walk", CORNERS, seed=seed, hold_steps=RANDOM_WALK_HOLD)
     metrics = run_episode(world, CORNERS, policy, safety_filter, config=EpisodeConfig(duration=task.duration),
                           seed=seed).metrics

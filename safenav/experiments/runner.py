@@ -169,12 +169,12 @@ def _is_terminal(stream: IO[str]) -> bool:
 def reproducible_settings(filter_name: str) -> dict[str, Any]:
     """Filter settings under which an episode depends only on its seed, not on the machine's load.
 
-    The MPC's compute budget makes a call that runs over it follow the last verified plan (status
-    ``fallback``, "deadline"): right on a robot, but on a loaded machine (a sweep on every core) the
-    same seed then gives another episode. Sweeps that compare filters run it without the budget
-    (``budget=inf``); the deadline has its own tests.
+    The compute budget of the MPC and of the CBF makes a call that cannot end within it follow the
+    last verified plan or brake (status ``fallback``, "deadline"): right on a robot, but on a loaded
+    machine (a sweep on every core) the same seed then gives another episode. Sweeps that compare
+    filters run them without the budget (``budget=inf``); the deadline has its own tests.
     """
-    return {"budget": math.inf} if unescaped(filter_name) == "mpc" else {}
+    return {"budget": math.inf} if unescaped(filter_name) in ("mpc", "cbf") else {}
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:

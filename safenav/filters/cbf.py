@@ -23,6 +23,7 @@ from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilte
 from safenav.filters.body import BodyModel
 from safenav.filters.deadline import StepClock
 from safenav.filters.defaults import (
+    BUDGET_FRACTION,
     default_gamma,
     default_margin,
     default_weights,
@@ -123,11 +124,12 @@ class CBFConfig:
             numba when it is installed, ``pip install "safenav[fast]"``), ``"numba"`` (compiled; raises
             :class:`~safenav.errors.MissingDependency` without numba) or ``"numpy"`` (the reference;
             :mod:`safenav.filters.kernels`). The same rows to rounding either way.
-        budget: compute budget of one call [s]; default ``math.inf`` (none: a call's QPs are few and short,
-            and without a budget the answers do not depend on the machine's load). With one (the MPC's
-            default is ``BUDGET_FRACTION * dt``, :data:`~safenav.filters.defaults.BUDGET_FRACTION` = 0.5),
-            a QP that could not end within it (:mod:`safenav.filters.deadline`) is not begun: the filter
-            brakes at the acceleration limits (status ``FALLBACK``, reason ``deadline``).
+        budget: compute budget of one call [s] (``math.inf``: none); default ``BUDGET_FRACTION * dt``
+            (:data:`~safenav.filters.defaults.BUDGET_FRACTION` = 0.5, as the MPC's). A QP that could not
+            end within it (:mod:`safenav.filters.deadline`) is not begun: the filter brakes at the
+            acceleration limits (status ``FALLBACK``, reason ``deadline``). With a budget the answers
+            depend on the machine's load (a call preempted past it brakes); sweeps that compare filters
+            run without one (:func:`safenav.experiments.runner.reproducible_settings`).
     """
 
     gamma: float | None = None
@@ -211,7 +213,7 @@ class CBFConfig:
                 < body_model(self.body, robot, self.n_disks).half_width) else None,
             weights=tuple(self.weights) if self.weights is not None else default_weights(robot),
             solver=self.solver.lower(),
-            budget=self.budget if self.budget is not None else math.inf,
+            budget=self.budget if self.budget is not None else BUDGET_FRACTION * dt,
         )
 
 
@@ -356,14 +358,17 @@ class CBFSafetyFilter(SafetyFilter):
     row until none is (constraint generation), so the answer is that of the QP with every
     row of every point. Every answer is verified against every row.
 
-    **Deadline.** A call may have a compute budget (``budget`` [s], counted from the call's start;
-    none by default: a call solves a few small QPs, and without a budget the answers do not depend
-    on the machine's load). With one, before each QP (the first, every round of constraint
-    generation, every slack tier) the filter checks that the QP, lasting as long as the longest
-    QP of its recent calls or of this call, can end before the budget less a reserve for the
-    verification and the result (:mod:`safenav.filters.deadline`); when it cannot, it brakes at
-    the acceleration limits (status ``FALLBACK``, reason ``deadline``). Its answers are otherwise
-    those without a budget; the fast path solves nothing and is never cut short.
+    **Deadline.** A call has a compute budget (``budget`` [s], default ``BUDGET_FRACTION = 0.5`` of
+    ``dt``; ``math.inf``: none), counted from the call's start. Before each QP (the first, every
+    round of constraint generation, every slack tier) the filter checks that the QP, lasting as
+    long as the longest QP of its recent calls or of this call (at most, and until one has been
+    timed, a quarter of the budget), can end before the budget less a reserve for the verification
+    and the result (as long as the recent calls' took, at most, and until timed, a quarter;
+    :mod:`safenav.filters.deadline`); when it cannot, it brakes at the acceleration limits (status
+    ``FALLBACK``, reason ``deadline``). Its answers are otherwise those without a budget; the fast
+    path solves nothing and is never cut short. A call ends within its budget unless the
+    perception already takes it, a QP takes longer than that estimate, or the verification and
+    result longer than the reserve.
 
     Args:
         robot: the robot to protect.

@@ -11,14 +11,14 @@ call so far (:attr:`CallBudget.step`). The solver's deadline is the call's end l
 up, the stored plan) and building the result, as long as the longest that took in those
 calls. Both estimates from earlier calls are at most :data:`RESERVE_SHARE` of the budget, so a
 preemption in one call does not make the solver of every later call give up early (the
-estimates are measured in every call the solver runs in, also when it gives up at once, so
-they recover as the window moves on).
+estimates recover as the window moves on). Until a step, or a tail, has been measured (a new
+filter's first solving calls), it is taken to last that share.
 
 So a call ends within its budget unless what comes before the solver already takes it (only
 the solve is cut short), one of its steps takes longer than that estimate (a step longer than
-every step before it, or longer than the share), or its tail longer than the reserve; on the
-filter's first solving calls, with nothing measured yet, the first step and the tail count in
-full.
+every step before it, or longer than the share), or its tail longer than the reserve (a tail
+longer than every tail before it, or than the share) -- the first solving calls of a new filter
+included.
 """
 
 from __future__ import annotations
@@ -49,7 +49,9 @@ class CallBudget:
         self.start: float | None = None
         """When the current call began [s] (``None`` between calls)."""
         self._returned: float | None = None
-        self._recent = 0.0      # the longest step of the recent calls, at most RESERVE_SHARE of the budget
+        # Each estimate from earlier calls: at most, and until one is measured, RESERVE_SHARE of the budget.
+        self._share = RESERVE_SHARE * self.budget if math.isfinite(self.budget) else 0.0
+        self._recent = 0.0      # the longest step of the recent calls
         self._longest = 0.0     # the longest step of the current call
         self._steps: deque[float] = deque(maxlen=TAIL_WINDOW)
         self._tails: deque[float] = deque(maxlen=TAIL_WINDOW)
@@ -57,25 +59,28 @@ class CallBudget:
     def begin(self) -> None:
         """A call begins now."""
         self.start, self._returned, self._longest = self.clock(), None, 0.0
-        self._recent = min(max(self._steps, default=0.0), RESERVE_SHARE * self.budget)
+        self._recent = min(max(self._steps, default=self._share), self._share)
 
     def end(self) -> None:
-        """The call ends now: if the solver ran, its longest step and the time since its last return are kept."""
+        """The call ends now: if the solver ran, the time since its last return is kept, and its longest
+        step if it began one."""
         if self._returned is not None:
             self._tails.append(max(0.0, self.clock() - self._returned))
-            self._steps.append(self._longest)
+            if self._longest > 0.0:
+                self._steps.append(self._longest)
         self.start, self._returned = None, None
 
     @property
     def step(self) -> float:
-        """How long the solver's next step is taken to last [s]: the longest of the recent calls' (at most
-        :data:`RESERVE_SHARE` of the budget) or of the current call so far."""
+        """How long the solver's next step is taken to last [s]: the longest of the recent calls' (at most,
+        and until one is measured, :data:`RESERVE_SHARE` of the budget) or of the current call so far."""
         return max(self._recent, self._longest)
 
     @property
     def reserve(self) -> float:
-        """Time kept after the solver's last return for the verification and the result [s]."""
-        return min(max(self._tails, default=0.0), RESERVE_SHARE * self.budget)
+        """Time kept after the solver's last return for the verification and the result [s]: the longest
+        such time of the recent calls (at most, and until one is measured, :data:`RESERVE_SHARE` of the budget)."""
+        return min(max(self._tails, default=self._share), self._share)
 
     @property
     def deadline(self) -> float:
@@ -91,7 +96,8 @@ class CallBudget:
         return self.clock() - (self.start if self.start is not None else self.clock())
 
     def returned(self, longest_step: float) -> None:
-        """The solver returned now; its longest step took ``longest_step`` [s] (measured, not estimated)."""
+        """The solver returned now; its longest step took ``longest_step`` [s] (measured, not estimated;
+        0 when it began none)."""
         self._longest = max(self._longest, float(longest_step))
         self._returned = self.clock()
 
@@ -105,25 +111,29 @@ class StepClock:
         step: how long a step is taken to last before one of this solve has been timed [s].
     """
 
-    __slots__ = ("_checked", "clock", "deadline", "longest", "step")
+    __slots__ = ("_checked", "_running", "clock", "deadline", "longest", "step")
 
     def __init__(self, deadline: float, clock: Callable[[], float], step: float = 0.0) -> None:
         self.deadline, self.clock, self.step = deadline, clock, float(step)
         self.longest = 0.0
         """The longest step of this solve so far [s]."""
         self._checked: float | None = None
+        self._running = False   # whether a step was begun at the last check
 
     def late(self) -> bool:
         """Checked before each step: ``True`` when it would end after the deadline, lasting the longer of
         ``step`` and :attr:`longest`."""
         now = self.clock()
-        if self._checked is not None:
+        if self._running:
             self.longest = max(self.longest, now - self._checked)
         self._checked = now
-        return now + max(self.step, self.longest) > self.deadline
+        self._running = now + max(self.step, self.longest) <= self.deadline
+        return not self._running
 
     def finished(self) -> float:
-        """The solver returns now: :attr:`longest`, counting the step since the last check [s]."""
-        if self._checked is not None:
+        """The solver returns now: :attr:`longest`, counting the step begun at the last check, if one was [s]
+        (0 when none was begun)."""
+        if self._running:
             self.longest = max(self.longest, self.clock() - self._checked)
+            self._running = False
         return self.longest

@@ -27,7 +27,9 @@ What it adds to each step:
   period (its velocity limits, and its acceleration limits from the measured velocity), so
   only the change made for safety counts, not what the base would have done anyway. The
   result itself, with the solver and its timing, is :attr:`SafetyShield.last_result` (timings
-  are left out of ``info`` so that the same seed gives the same infos);
+  are left out of ``info`` so that the same seed gives the same infos; a filter's compute budget,
+  half the period by default, brakes a call that a loaded machine delays past it, so for
+  infos that depend on the seed alone give ``budget=math.inf``);
 * an optional **intervention penalty** (off by default): with ``intervention_penalty=w`` the
   reward is lowered by ``w * safety_change`` [(m/s, rad/s)]; a non-finite action counts as
   the diagonal of the velocity limits. It teaches the agent to need the shield less; it does

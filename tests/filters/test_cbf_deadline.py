@@ -1,4 +1,4 @@
-"""The CBF filter's compute budget (none by default), with an injected clock and an injected slow QP solver.
+"""The CBF filter's compute budget (half the period by default), with an injected clock and an injected slow QP solver.
 
 With a budget, a QP that could not end within the call's budget (lasting as long as the longest QP of the
 recent calls or of this call) is not begun: the filter brakes at the acceleration limits
@@ -30,11 +30,12 @@ def slow_cbf(robot, seconds: float, **settings) -> tuple[CBFSafetyFilter, Simula
     return safety, clock, slow
 
 
-def test_by_default_there_is_no_budget_and_one_can_be_given():
-    assert CBFSafetyFilter(preset("rosbot"), 0.05).budget == math.inf
-    assert CBFSafetyFilter(preset("m2wr"), 0.02).config.budget == math.inf
+def test_the_default_budget_is_half_the_period_and_one_can_be_given_or_none():
+    assert CBFSafetyFilter(preset("rosbot"), 0.05).budget == pytest.approx(0.025)
+    assert CBFSafetyFilter(preset("m2wr"), 0.02).config.budget == pytest.approx(0.01)
     assert CBFSafetyFilter(preset("rosbot"), 0.02, budget=0.004).budget == 0.004
-    assert "none by default" in CBFSafetyFilter.__doc__
+    assert CBFSafetyFilter(preset("rosbot"), 0.02, budget=math.inf).budget == math.inf
+    assert "default ``BUDGET_FRACTION = 0.5``" in CBFSafetyFilter.__doc__
     for bad in (0.0, -1.0, math.nan):
         with pytest.raises(InvalidConfig, match=r"CBFConfig.budget must be a number > 0, got"):
             CBFSafetyFilter(preset("rosbot"), 0.05, budget=bad)
@@ -76,6 +77,18 @@ def test_a_call_whose_perception_took_its_budget_brakes_before_its_first_qp_and_
     safety._observe = slowed(safety._observe, clock, 0.2 * budget)      # now past the budget before any QP
     kept = safety.filter((0.0, 0.0), scan, velocity=(0.0, 0.0))
     assert kept.status is FilterStatus.OK and np.array_equal(kept.u, (0.0, 0.0)) and slow.calls == 0
+
+
+def test_a_new_filters_first_qp_is_taken_to_last_a_share_of_the_budget():
+    """Nothing timed yet: a first call whose perception took 0.7 of the budget does not begin a QP
+    (taken to last RESERVE_SHARE, with as much kept for the answer) that would take it past the budget."""
+    robot = preset("rosbot")
+    budget = 0.01
+    safety, clock, slow = slow_cbf(robot, 0.4 * budget, budget=budget)
+    safety._observe = slowed(safety._observe, clock, 0.7 * budget)
+    result = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.6))), velocity=(0.5, 0.0))
+    assert result.status is FilterStatus.FALLBACK and result.reason.family == "deadline"
+    assert slow.calls == 0 and clock.now <= budget
 
 
 @pytest.mark.parametrize("name", ["rosbot", "m2wr"])

@@ -168,7 +168,14 @@ def test_single_beam_and_huge_scans_are_filtered(make):
     filt = make(robot)
     result = filt.filter((0.5, 0.3), huge)
     assert_safe_command(result, robot)
-    assert result.status in (FilterStatus.OK, FilterStatus.RECOVERING)
+    # Answered, or, where 100 000 beams take most of the compute budget (half the period) on this machine,
+    # braked for the deadline and saying so; without a budget, answered.
+    assert result.status in (FilterStatus.OK, FilterStatus.RECOVERING) or (
+        result.status is FilterStatus.FALLBACK and result.reason.family == "deadline"
+        and result.filter_time >= 0.5 * filt.budget)
+    unlimited = type(filt)(robot, DT, budget=math.inf).filter((0.5, 0.3), huge)
+    assert_safe_command(unlimited, robot)
+    assert unlimited.status in (FilterStatus.OK, FilterStatus.RECOVERING)
 
 
 # ------------------------------------------------------------------ fuzzing

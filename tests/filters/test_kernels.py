@@ -95,16 +95,16 @@ def test_a_point_at_a_control_point_gets_the_same_rows():
 def test_closed_loops_give_the_same_commands(kind, name, dt):
     """Issue 18's wall scene (a wall just beside the path, the nominal turning into it at full speed), both
     kernels side by side on every call, the loop driven by the numpy filter: the same command to 1e-12 (the
-    MPC's plans to 1e-9) and the same status on every call, and the body clear of the wall. (The MPC without a
-    compute budget: a call that runs out of it follows the stored plan, whichever kernels.)"""
+    MPC's plans to 1e-9) and the same status on every call, and the body clear of the wall. (Both filters without
+    a compute budget: a call that runs out of it brakes or follows the stored plan, whichever kernels.)"""
     robot = preset(name)
     rng = np.random.default_rng(3)
     tolerance = 1e-12 if kind == "cbf" else 1e-9
     for side in (1.0, -1.0):
         scene = Scene.of(Segment((0.16, side * (robot.radius + 0.05)), (4.0, side * (robot.radius + 0.05))))
         if kind == "cbf":
-            compiled = CBFSafetyFilter(robot, dt, kernels="numba")
-            reference = CBFSafetyFilter(robot, dt, kernels="numpy")
+            compiled = CBFSafetyFilter(robot, dt, kernels="numba", budget=math.inf)
+            reference = CBFSafetyFilter(robot, dt, kernels="numpy", budget=math.inf)
         else:
             compiled = MPCSafetyFilter(robot, dt, kernels="numba", budget=math.inf)
             reference = MPCSafetyFilter(robot, dt, kernels="numpy", budget=math.inf)

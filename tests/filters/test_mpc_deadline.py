@@ -171,9 +171,10 @@ def test_the_whole_call_ends_within_the_budget_perception_steps_and_verification
     (by turns, one per call; at most RESERVE_SHARE of the budget, the most a step from earlier
     calls is taken to last): the solver begins a step only when that step and the call's tail
     (verifying and answering, as long as the recent calls' tails) fit before the call's end.
-    From the filter's second solving call on, every call ends within its budget, solved or
-    following its stored plan, unless its tail is longer than every tail measured before it (a
-    verification more than before); the robot keeps its margin."""
+    Every call, the filter's first solving one included (nothing timed yet: a step and the tail are
+    taken to last RESERVE_SHARE of the budget), ends within its budget, solved or following its
+    stored plan, unless its tail is longer than every tail measured before it (a verification more
+    than before); the robot keeps its margin."""
     robot = preset(name)
     budget = 0.01
     safety, clock, slow = slow_filter(robot, seconds=0.0, budget=budget)
@@ -188,8 +189,8 @@ def test_the_whole_call_ends_within_the_budget_perception_steps_and_verification
         started, reserve, measured = clock.now, safety._budget.reserve, len(tails)
         result = safety.filter((robot.v_max, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity)
         longer_tail = len(tails) > measured and tails[-1] > reserve + 1e-12
-        new_tails += longer_tail and solved + fallbacks >= 1
-        if solved + fallbacks >= 1 and clock.now - started > budget + 1e-12 and not longer_tail:
+        new_tails += longer_tail
+        if clock.now - started > budget + 1e-12 and not longer_tail:
             late.append((k, clock.now - started))
         deadline = result.reason is not None and result.reason.family == "deadline"
         fallbacks += deadline
@@ -211,7 +212,10 @@ def test_a_call_begins_no_step_longer_than_the_recent_calls_steps_could_take():
     safety, clock, slow = slow_filter(robot, seconds=0.2 * budget, budget=budget)
     scan = synthetic_scan(robot, Scene.of(wall(0.45)))
     first = safety.filter((1.0, 0.0), scan, velocity=(0.8, 0.0))
-    assert first.status is FilterStatus.OK and first.solver and slow.calls > 0   # steps of 0.2 budget measured
+    # Steps of 0.2 budget measured (three begun: a fourth, taken to last a quarter, would end in the reserve).
+    assert first.solver and slow.calls == 3
+    first = safety.filter((1.0, 0.0), scan, velocity=(0.8, 0.0))    # now with the measured estimates
+    assert first.status is FilterStatus.OK and first.solver
     observe = safety._observe
     safety._observe = slowed(observe, clock, 0.85 * budget)     # a slow perception: 0.15 of the budget left
     slow.calls = 0
@@ -223,6 +227,46 @@ def test_a_call_begins_no_step_longer_than_the_recent_calls_steps_could_take():
     started = clock.now
     again = safety.filter((1.0, 2.5), scan, velocity=tuple(first.u))
     assert slow.calls == 1 and clock.now - started <= budget and again.reason.family == "deadline"
+
+
+def test_a_new_filters_first_solving_call_ends_within_its_budget():
+    """Nothing timed yet: the first step is taken to last RESERVE_SHARE of the budget, and as much is
+    kept for the verification, so a first call whose perception took 0.6 of the budget does not
+    begin a QP of 0.3 (it would end at 0.9 and the verification after it)."""
+    robot = preset("rosbot")
+    budget = 0.01
+    safety, clock, slow = slow_filter(robot, seconds=0.3 * budget, budget=budget)
+    safety._observe = slowed(safety._observe, clock, 0.6 * budget)
+    safety.check_plan = slowed(safety.check_plan, clock, 0.05 * budget)
+    result = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.45))), velocity=(0.8, 0.0))
+    assert result.status is FilterStatus.FALLBACK and result.reason.family == "deadline"
+    assert slow.calls == 0 and clock.now <= budget
+    # With the perception at 0.4 of the budget the first QP fits (0.4 + 0.25 <= 0.75), the second not.
+    safety, clock, slow = slow_filter(robot, seconds=0.2 * budget, budget=budget)
+    safety._observe = slowed(safety._observe, clock, 0.4 * budget)
+    result = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.45))), velocity=(0.8, 0.0))
+    assert slow.calls >= 1 and clock.now <= budget
+
+
+def test_the_cbf_reference_spends_the_mpcs_budget_and_brakes_when_its_qp_cannot_end_in_time():
+    """With ``reference="cbf"`` one call has one budget: the reference's QPs check it too. After a
+    perception of 0.6 of the budget, the reference's first QP (nothing timed yet: taken to last a
+    quarter, with a quarter kept for the answer) is not begun; the reference brakes for the deadline,
+    the MPC's plan tracks that braking and says why, and the call ends within its budget."""
+    robot = preset("rosbot")
+    budget = 0.01
+    clock = SimulatedClock()
+    safety = MPCSafetyFilter(robot, DT, clock=clock, budget=budget, reference="cbf")
+    assert safety.reference._budget is safety._budget and safety.reference.budget == budget
+    assert MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf").reference.budget == math.inf
+    slow = SlowQP(clock, 0.3 * budget)
+    safety.reference.backend = slow
+    safety.reference._observe = slowed(safety.reference._observe, clock, 0.6 * budget)
+    result = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.6))), velocity=(0.5, 0.0))
+    assert slow.calls == 0 and clock.now <= budget
+    assert result.reason is not None and result.reason.family == "deadline"
+    assert "the cbf reference (fallback): no answer within the compute budget of 10 ms" in result.message
+    assert result.u == pytest.approx(robot.brake((0.5, 0.0), DT))
 
 
 def test_one_preempted_step_does_not_make_the_next_calls_give_up():

@@ -192,9 +192,9 @@ class MPCSafetyFilter(SafetyFilter):
     of ``dt``), counted from the call's start: the perception, the reference's call, the solve,
     the verification and the result all spend it. The SQP checks the clock before every step
     (an iteration, or another round of rows for its QP) and begins one only if it can end, as
-    long as the longest step of the recent calls (at most a quarter of the budget) or of this
-    call, before the budget less a reserve for the verification and the result (as long as the
-    longest the recent calls' took, at most a quarter of the budget;
+    long as the longest step of the recent calls (at most, and until one has been timed, a quarter
+    of the budget) or of this call, before the budget less a reserve for the verification and the
+    result (as long as the longest the recent calls' took, at most, and until timed, a quarter;
     :mod:`~safenav.filters.deadline`). When it cannot, the solve is abandoned (the next call
     starts afresh, on time) and the filter follows the next command of its last verified plan,
     which ends stopped (status ``FALLBACK``, reason ``deadline``); without one it brakes at the
@@ -202,10 +202,11 @@ class MPCSafetyFilter(SafetyFilter):
     this call's, when it comes nearer a point than its guaranteed radius (a wall seen since) and
     braking at the limits keeps more clearance, the filter brakes instead and says so. A call
     ends within its budget unless what comes before the solve (the perception, the reference's
-    call, the fast path's check) already takes it, a step takes longer than that estimate (longer
-    than every step of the recent calls and of this call, or than a quarter of the budget), or the
-    verification and result longer than the reserve (and on the filter's first solving calls,
-    before they have been timed); only the solve is cut short.
+    perception, the fast path's check) already takes it, a step takes longer than that estimate
+    (longer than every step of the recent calls and of this call, or than a quarter of the
+    budget), or the verification and result longer than the reserve (a new filter's first solving
+    calls included); only the solves are cut short (with ``reference="cbf"`` the reference's QPs
+    check the same budget: when they cannot end in time it brakes, and the plan tracks that).
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
@@ -318,6 +319,7 @@ class MPCSafetyFilter(SafetyFilter):
                 scan_timeout=cfg.scan_timeout, compensate_latency=cfg.compensate_latency,
                 memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time,
                 kernels=cfg.kernels, clock=clock)
+            self.reference._budget = self._budget       # one call, one budget: the reference's QPs stop in time too
         self._referenced: FilterResult | None = None    # the reference's answer of this call
         #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock
         #: are this filter's), used while :attr:`narrow` asks for it, else ``None``.
