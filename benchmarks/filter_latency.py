@@ -16,8 +16,7 @@ answer (``reference="cbf"``, the MPC inside the deadlock escape: a CBF call in e
 0.05 and 0.1 s: median, p99, p99.9 and max of every call, the share of calls longer than
 half a period (the filters' default compute budget; with ``--deadline-budget``, that share of the
 period, which both filters are then given) and longer than the period, the CPU time of the calls
-(which a busy machine's scheduling does not inflate), the calls that gave up at the deadline (with the
-CBF reference, also the calls whose reference braked at it and whose plan tracked that), and
+(which a busy machine's scheduling does not inflate), the calls that gave up at the deadline, and
 the MPC's solving calls apart; the straightforward baseline (no budget) timed on the CBF's own
 scans of the same run.
 

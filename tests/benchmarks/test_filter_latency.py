@@ -71,8 +71,5 @@ def test_the_deadline_scenario_times_every_filter_at_the_budget_asked(tmp_path, 
     for row in rows:
         assert row["budget_s"] == pytest.approx(0.005) and row["budget_fraction"] == 0.1
         assert row["calls"]["n"] == 2 * 20 == sum(row["statuses"].values())
-        # A deadline fallback is the filter's own (status fallback), or, with the CBF reference, the reference's
-        # braking that the MPC's verified plan tracked (status ok, the reference's reason).
-        limit = row["calls"]["n"] if row["filter"] == "mpc (cbf reference)" else row["statuses"].get("fallback", 0)
-        assert 0 <= row["deadline_fallbacks"] <= limit
+        assert 0 <= row["deadline_fallbacks"] <= row["statuses"].get("fallback", 0)
     assert "baseline" in rows[0]

@@ -248,25 +248,20 @@ def test_a_new_filters_first_solving_call_ends_within_its_budget():
     assert slow.calls >= 1 and clock.now <= budget
 
 
-def test_the_cbf_reference_spends_the_mpcs_budget_and_brakes_when_its_qp_cannot_end_in_time():
-    """With ``reference="cbf"`` one call has one budget: the reference's QPs check it too. After a
-    perception of 0.6 of the budget, the reference's first QP (nothing timed yet: taken to last a
-    quarter, with a quarter kept for the answer) is not begun; the reference brakes for the deadline,
-    the MPC's plan tracks that braking and says why, and the call ends within its budget."""
+def test_the_cbf_reference_has_no_budget_of_its_own():
+    """With ``reference="cbf"`` the reference's call is not cut short (only the MPC's solve is): a
+    reference QP begun after a perception of 0.6 of the budget is solved, not braked for a deadline."""
     robot = preset("rosbot")
     budget = 0.01
     clock = SimulatedClock()
     safety = MPCSafetyFilter(robot, DT, clock=clock, budget=budget, reference="cbf")
-    assert safety.reference._budget is safety._budget and safety.reference.budget == budget
-    assert MPCSafetyFilter(robot, DT, budget=math.inf, reference="cbf").reference.budget == math.inf
+    assert safety.budget == budget and safety.reference.budget == math.inf
     slow = SlowQP(clock, 0.3 * budget)
     safety.reference.backend = slow
     safety.reference._observe = slowed(safety.reference._observe, clock, 0.6 * budget)
     result = safety.filter((1.0, 0.0), synthetic_scan(robot, Scene.of(wall(0.6))), velocity=(0.5, 0.0))
-    assert slow.calls == 0 and clock.now <= budget
-    assert result.reason is not None and result.reason.family == "deadline"
-    assert "the cbf reference (fallback): no answer within the compute budget of 10 ms" in result.message
-    assert result.u == pytest.approx(robot.brake((0.5, 0.0), DT))
+    assert slow.calls >= 1
+    assert "the cbf reference (fallback)" not in result.message
 
 
 def test_one_preempted_step_does_not_make_the_next_calls_give_up():

@@ -202,11 +202,11 @@ class MPCSafetyFilter(SafetyFilter):
     this call's, when it comes nearer a point than its guaranteed radius (a wall seen since) and
     braking at the limits keeps more clearance, the filter brakes instead and says so. A call
     ends within its budget unless what comes before the solve (the perception, the reference's
-    perception, the fast path's check) already takes it, a step takes longer than that estimate
+    call, the fast path's check) already takes it, a step takes longer than that estimate
     (longer than every step of the recent calls and of this call, or than a quarter of the
     budget), or the verification and result longer than the reserve (a new filter's first solving
-    calls included); only the solves are cut short (with ``reference="cbf"`` the reference's QPs
-    check the same budget: when they cannot end in time it brakes, and the plan tracks that).
+    calls included); only the solve is cut short (with ``reference="cbf"`` the reference's call is
+    not: sharing the budget with it was tried and sent more calls past the budget, BENCHMARKS.md).
 
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
@@ -318,8 +318,7 @@ class MPCSafetyFilter(SafetyFilter):
                 time_constant=cfg.time_constant, max_gap=cfg.max_gap, side_tolerance=cfg.side_tolerance,
                 scan_timeout=cfg.scan_timeout, compensate_latency=cfg.compensate_latency,
                 memory_range=cfg.memory_range, memory_capacity=cfg.memory_capacity, deadlock_time=cfg.deadlock_time,
-                kernels=cfg.kernels, clock=clock)
-            self.reference._budget = self._budget       # one call, one budget: the reference's QPs stop in time too
+                kernels=cfg.kernels, clock=clock, budget=math.inf)
         self._referenced: FilterResult | None = None    # the reference's answer of this call
         #: The planner of the narrow body (the same filter for the cover of the footprint; its memory and clock
         #: are this filter's), used while :attr:`narrow` asks for it, else ``None``.
