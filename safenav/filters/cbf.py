@@ -1017,8 +1017,12 @@ class CBFSafetyFilter(SafetyFilter):
         return None, working, solve_time, "constraint generation did not settle"
 
     def _hard_feasible(self, hard: families.Rows, problem: _Problem) -> bool:
-        """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP)."""
+        """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP, unless the
+        command nearest a stop already does: the usual case, a blind side the base is not moving towards)."""
         if not len(hard):
+            return True
+        stop = self._lifted(np.clip(np.zeros(2), *problem.limits), problem)
+        if np.all(hard.G @ stop <= hard.h):
             return True
         qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((self._abs_rows.G, hard.G)),
                     np.concatenate((self._abs_rows.h, hard.h)), problem.lower, problem.upper)

@@ -726,3 +726,25 @@ def test_a_base_at_its_acceleration_limits_slides_along_a_wall_the_nominal_turns
     ramp = robot.v_max / robot.a_max
     reachable = robot.v_max * (duration - ramp) + 0.5 * robot.v_max * ramp
     assert pose.x >= 0.6 * reachable, f"{name} slid only {pose.x:.2f} m of {reachable:.2f} m"
+
+
+def test_hard_rows_the_stop_command_keeps_need_no_lp_and_others_get_one():
+    """Whether any command in the box keeps the hard rows (asked when the first QP has no answer): the
+    command nearest a stop answers without an LP when it keeps them; otherwise the LP decides. Here the
+    blind rows of a side behind the m2wr (no backing faster than ``speed``)."""
+    from safenav.filters import rows as families
+
+    robot = preset("m2wr")
+    filt = CBFSafetyFilter(robot, DT, budget=math.inf)
+    view = filt._inspected(synthetic_scan(robot, Scene.of(wall(1.0))))
+    solves = []
+    solve = filt.backend.solve
+    filt.backend.solve = lambda qp: solves.append(qp) or solve(qp)
+    slowest = -0.45 + robot.a_max * DT      # backing at 0.45 m/s, the base slows to this within the period
+    assert -0.42 < slowest < -0.38
+    for velocity, speed, feasible, lp in [((0.3, 0.0), 0.0, True, 0), ((-0.45, 0.0), 0.42, True, 0),
+                                          ((-0.45, 0.0), 0.0, False, 1), ((-0.45, 0.0), 0.38, False, 1)]:
+        solves.clear()
+        problem = filt._constraints(view, np.array(velocity), DT)
+        assert filt._hard_feasible(families.blind_rows(False, True, speed), problem) is feasible
+        assert len(solves) == lp
