@@ -68,7 +68,7 @@ def sweep_parser(prog: str, description: str, add_options: Callable[[argparse.Ar
         prog: the program name (``safenav bench NAME`` passes its own).
         description: the help text (the module's docstring, kept as written).
         add_options: adds the sweep's own options to the parser.
-        real_time: add ``--real-time`` (keep the MPC's compute budget; see
+        real_time: add ``--real-time`` (keep the filters' compute budgets; see
             :func:`~safenav.experiments.runner.reproducible_settings`).
     """
     parser = argparse.ArgumentParser(prog=prog, description=description,
@@ -76,7 +76,7 @@ def sweep_parser(prog: str, description: str, add_options: Callable[[argparse.Ar
     add_options(parser)
     if real_time:
         parser.add_argument("--real-time", action="store_true",
-                            help="keep the MPC's compute budget (results then depend on the machine's load)")
+                            help="keep the filters' compute budgets (results then depend on the machine's load)")
     add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser
