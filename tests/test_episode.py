@@ -30,7 +30,8 @@ class Constant(Policy):
 def test_same_seed_gives_identical_metrics():
     robot = preset("puzzlebot")
     world = random_world(4, robot)
-    runs = [run_episode(world, robot, RandomWalk(robot), CBFSafetyFilter(robot, 0.05),
+    # Without a compute budget: with one, a process pause in either run would brake a call (reproducible_settings).
+    runs = [run_episode(world, robot, RandomWalk(robot), CBFSafetyFilter(robot, 0.05, budget=math.inf),
                         config=EpisodeConfig(duration=8.0), seed=11, record=True) for _ in range(2)]
     a, b = (run.metrics for run in runs)
     assert (a.steps, a.collided, a.min_clearance, a.distance, a.mean_intervention, a.statuses) == \

@@ -414,7 +414,7 @@ def _escape_points(filter_name: str, latency: bool, with_velocity: bool = True,
     that call)."""
     robot, dt = preset("m2wr"), 0.05       # a 180-degree lidar: the side of the wall it follows is remembered
     scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
-    inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
+    inner = (CBFSafetyFilter if filter_name == "cbf" else MPCSafetyFilter)(robot, dt, budget=math.inf)
     escape = Escape(inner)
     used: list[tuple[Pose2D, np.ndarray, int]] = []
     pose = previous = Pose2D()
@@ -497,7 +497,7 @@ def test_the_escape_calls_the_filter_once_per_period_also_when_a_deadlock_begins
     one period too far. The escape starts at the call after the deadlock is reported."""
     robot, dt = preset("m2wr"), 0.05
     scene = Scene.of(Segment((1.2, -1.5), (1.2, 1.5)))
-    inner = CBFSafetyFilter(robot, dt) if filter_name == "cbf" else MPCSafetyFilter(robot, dt, budget=math.inf)
+    inner = (CBFSafetyFilter if filter_name == "cbf" else MPCSafetyFilter)(robot, dt, budget=math.inf)
     escape = Escape(inner)
     calls = []
     wrapped = inner.filter
