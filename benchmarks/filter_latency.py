@@ -317,7 +317,7 @@ class DeadlineRecorder:
             self.solving.append(result.filter_time)
             self.solver.append(result.solve_time)
         self.statuses[result.status.value] = self.statuses.get(result.status.value, 0) + 1
-        self.deadline += result.reason is not None and result.reason.family == "deadline"
+        self.deadline += result.timed_out
         if len(self.scans) < self.keep_scans:
             self.scans.append(scan)
 

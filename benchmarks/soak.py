@@ -80,7 +80,7 @@ def soak(steps: int = 20_000, *, robot_name: str = "rosbot", filter_name: str = 
         now = time.perf_counter()
         step_times[index] = now - clock[0]
         clock[0] = now
-        deadline[0] += result.reason is not None and result.reason.family == "deadline"
+        deadline[0] += result.timed_out
         if index == warmup:
             gc.collect()
             memory["rss_start"] = resident_bytes()

@@ -291,6 +291,12 @@ class FilterResult:
         """True when ``u`` differs from ``u_nom``."""
         return not np.array_equal(self.u, self.u_nom)
 
+    @property
+    def timed_out(self) -> bool:
+        """True when the call gave up at its compute budget (reason family ``deadline``): it braked, or
+        followed the MPC's last verified plan (:mod:`safenav.filters.deadline`)."""
+        return self.reason is not None and self.reason.family == "deadline"
+
     intervened = modified
 
     @property

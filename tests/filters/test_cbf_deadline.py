@@ -54,6 +54,7 @@ def test_a_qp_that_cannot_end_within_the_budget_is_not_begun_and_the_filter_brak
     started = clock.now
     result = safety.filter((1.0, 0.0), scan, velocity=(0.5, 0.0))
     assert result.status is FilterStatus.FALLBACK and result.braked and result.reason.family == "deadline"
+    assert result.timed_out and not answered.timed_out
     assert "no answer within the compute budget of 10 ms" in result.message
     assert "braking at the acceleration limits" in result.message
     assert result.u == pytest.approx(robot.brake((0.5, 0.0), DT))
