@@ -356,7 +356,9 @@ class CBFSafetyFilter(SafetyFilter):
     the largest approach speed ``S`` the box allows. Rows no command in the box can violate
     are dropped; the QP starts from the nearest point per angular bin and adds any violated
     row until none is (constraint generation), so the answer is that of the QP with every
-    row of every point. Every answer is verified against every row.
+    row of every point. A row that no command in the box keeps (its smallest left side over the
+    box above its right side) means that QP has no answer: the slack tiers follow without
+    solving it. Every answer is verified against every row.
 
     **Deadline.** A call has a compute budget (``budget`` [s], default ``BUDGET_FRACTION = 0.5`` of
     ``dt``; ``math.inf``: none), counted from the call's start. Before each QP (the first, every
@@ -712,22 +714,40 @@ class CBFSafetyFilter(SafetyFilter):
     def _qp(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem, slack: int | None = None) -> QPData:
         """The QP over ``rows``; with ``slack`` (a tier index) one slack relaxes the obstacle rows of
         tiers up to it (:data:`SLACK_TIERS`) and the other rows stay hard."""
-        P = self._P
-        q = np.zeros(4)
-        q[:2] = -P[:2, :2] @ self._target(u_nom)
-        lower, upper = problem.lower, problem.upper
-        abs_rows = self._abs_rows
-        G = np.vstack((abs_rows.G, rows.G))
-        h = np.concatenate((abs_rows.h, rows.h))
-        if slack is not None:
-            stage_h, stage_relaxed = self._stage(rows, problem, slack)
-            h = np.concatenate((abs_rows.h, stage_h))
-            relaxed = np.concatenate((np.zeros(len(abs_rows), dtype=bool), stage_relaxed))
-            P = self._P_slack
-            q = np.append(q, SLACK_LINEAR_WEIGHT)
-            G = np.column_stack((G, -relaxed.astype(float)))
+        stage = None if slack is None else self._stage(rows, problem, slack)
+        return self._assembler(u_nom, rows, problem, stage)(np.ones(len(rows), dtype=bool))
+
+    def _assembler(self, u_nom: np.ndarray, rows: families.Rows, problem: _Problem,
+                   stage: tuple[np.ndarray, np.ndarray] | None) -> Callable[[np.ndarray], QPData]:
+        """The QP of :meth:`_qp` over the rows a mask picks, as a function of the mask; ``stage``: a slack tier's
+        right sides and relaxed rows (:meth:`_stage`), or ``None`` (no slack). What does not depend on the
+        mask (the cost, the bounds) is computed once for every round of a solve."""
+        q = np.zeros(4 if stage is None else 5)
+        q[:2] = -self._P[:2, :2] @ self._target(u_nom)
+        P, lower, upper = self._P, problem.lower, problem.upper
+        h, minus_relaxed = rows.h, None
+        if stage is not None:
+            h, relaxed = stage
+            minus_relaxed = -relaxed.astype(float)
+            P, q[4] = self._P_slack, SLACK_LINEAR_WEIGHT
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)
-        return QPData(P, q, G, h, lower, upper)
+        abs_rows = self._abs_rows
+        fixed = len(abs_rows)
+
+        def assemble(mask: np.ndarray) -> QPData:
+            index = np.flatnonzero(mask)
+            G = np.empty((fixed + index.size, q.size))
+            G[:fixed, :4] = abs_rows.G
+            G[fixed:, :4] = rows.G[index]
+            bound = np.empty(fixed + index.size)
+            bound[:fixed] = abs_rows.h
+            bound[fixed:] = h[index]
+            if minus_relaxed is not None:
+                G[:fixed, 4] = -0.0   # as -relaxed over the auxiliary rows (bit for bit the same QP)
+                G[fixed:, 4] = minus_relaxed[index]
+            return QPData(P, q, G, bound, lower, upper)
+
+        return assemble
 
     def _stage(self, rows: families.Rows, problem: _Problem, tier: int) -> tuple[np.ndarray, np.ndarray]:
         """Right sides and the mask of the rows one slack relaxes in the stage of ``tier``.
@@ -887,7 +907,8 @@ class CBFSafetyFilter(SafetyFilter):
         Raises :class:`_OutOfTime` when the next QP cannot end within the call's budget."""
         rows, points = problem.rows, problem.points
         lower, upper = problem.limits
-        candidate = np.flatnonzero(self._prune(rows, problem))
+        largest, smallest = families.box_range(rows.G, problem.lower, problem.upper)
+        candidate = np.flatnonzero(largest > rows.h)     # the rows some command in the box violates (_prune)
         if candidate.size == 0:
             # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
             u = np.clip(self._target(u_nom), lower, upper)
@@ -905,7 +926,10 @@ class CBFSafetyFilter(SafetyFilter):
             working = cand.point < 0
             working[point_rows[chosen]] = True
         initial = working.copy()
-        z, working, solve_time, _ = self._solve_generating(u_nom, cand, working, problem)
+        if self._box_excludes(smallest, rows.h):
+            z, solve_time = None, 0.0
+        else:
+            z, working, solve_time, _ = self._solve_generating(u_nom, cand, working, problem)
         slack = 0.0
         tier: int | None = None
         status = FilterStatus.OK
@@ -999,12 +1023,14 @@ class CBFSafetyFilter(SafetyFilter):
         working = working.copy()
         solve_time = 0.0
         outcome = None
+        stage = None
         if slack is not None:   # the stage's right sides and relaxed rows, the same in every round
-            stage_h, relaxed = self._stage(rows, problem, slack)
+            stage = stage_h, relaxed = self._stage(rows, problem, slack)
+        assemble = self._assembler(u_nom, rows, problem, stage)
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
-            outcome = self._solve_qp(self._qp(u_nom, rows.take(working), problem, slack=slack))
+            outcome = self._solve_qp(assemble(working))
             solve_time += outcome.solve_time
             z = outcome.x
             if z is None:
@@ -1015,6 +1041,14 @@ class CBFSafetyFilter(SafetyFilter):
                 return z, working, solve_time, outcome.status
             working |= violated
         return None, working, solve_time, "constraint generation did not settle"
+
+    @staticmethod
+    def _box_excludes(smallest: np.ndarray, h: np.ndarray) -> bool:
+        """Whether some row is missed by every ``z`` in the box (``smallest``: each row's smallest left side over
+        the box) by more than the check's tolerance: then the QP has no answer, and no solve is needed to say so
+        (inside the margin, the deepest point's recovery row under the acceleration limits, the usual cause of a
+        first QP without answer)."""
+        return bool(np.any(smallest > h + VERIFY_TOLERANCE))
 
     def _hard_feasible(self, hard: families.Rows, problem: _Problem) -> bool:
         """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP, unless the

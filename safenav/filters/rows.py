@@ -39,6 +39,7 @@ __all__ = [
     "abs_rows",
     "barrier_rows",
     "blind_rows",
+    "box_range",
     "braking_coefficient",
     "braking_rows",
     "braking_swing",
@@ -543,6 +544,13 @@ def worst_case(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarra
     # elementwise form for a few hundred rows; equal to rounding). Finite bounds only: an infinite one gives
     # inf - inf here. Both callers pass the velocity box and the auxiliaries' bounds, finite.
     return G @ (0.5 * (lower + upper)) + np.abs(G) @ (0.5 * (upper - lower))
+
+
+def box_range(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest and smallest left side of each row of ``G`` ``(k, 4)`` over the finite box ``lower <= z <= upper``
+    (the first is :func:`worst_case`, from the same two products)."""
+    centre, spread = G @ (0.5 * (lower + upper)), np.abs(G) @ (0.5 * (upper - lower))
+    return centre + spread, centre - spread
 
 
 def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0,

@@ -748,3 +748,38 @@ def test_hard_rows_the_stop_command_keeps_need_no_lp_and_others_get_one():
         problem = filt._constraints(view, np.array(velocity), DT)
         assert filt._hard_feasible(families.blind_rows(False, True, speed), problem) is feasible
         assert len(solves) == lp
+
+
+def test_a_row_no_command_in_the_box_keeps_needs_no_qp_to_say_the_rows_need_slack():
+    """When some row's smallest left side over the box exceeds its right side, the QP without slack has no answer:
+    the filter goes to the slack tiers without solving it. The answers are those of the filter that solves it
+    (here the shortcut turned off), with fewer QPs (the first solve's rounds of constraint generation); where every
+    row can be kept, the QPs are those of before. The scenes: walls ahead, and a post beside and behind the body,
+    inside the margin, that a stopped base can leave at the rate the barrier asks (a shortcut that took a row
+    some command misses for one no command keeps would only hold its distance there)."""
+    robot = preset("rosbot")
+    scenes = [Scene.of(wall(distance)) for distance in (0.35, 0.45, 0.6)]
+    scenes += [Scene.of(Circle((distance * math.cos(angle), distance * math.sin(angle)), 0.03))
+               for angle, distance in [(2.09, 0.23), (-2.09, 0.23), (2.62, 0.2)]]
+    skipped = 0
+    for scan in (synthetic_scan(robot, scene) for scene in scenes):
+        for velocity in [(0.0, 0.0), (0.5, 0.0), (0.8, 1.0), (-0.3, -2.0)]:
+            for nominal in [(1.0, 0.5), (-0.3, 0.0)]:
+                answers, counts = [], []
+                for shortcut in (True, False):
+                    filt = CBFSafetyFilter(robot, DT, budget=math.inf)
+                    if not shortcut:
+                        filt._box_excludes = lambda smallest, h: False
+                    calls = []
+                    solve = filt.backend.solve
+                    filt.backend.solve = lambda qp, solve=solve, calls=calls: calls.append(qp) or solve(qp)
+                    answers.append(filt.filter(nominal, scan, velocity=velocity))
+                    counts.append(len(calls))
+                fast, slow = answers
+                assert np.array_equal(fast.u, slow.u) and fast.status is slow.status
+                assert fast.reason == slow.reason and fast.slack == slow.slack
+                assert counts[0] <= counts[1]
+                if counts[0] < counts[1]:
+                    skipped += 1
+                    assert fast.status in (FilterStatus.SLACK, FilterStatus.RECOVERING, FilterStatus.BRAKING)
+    assert skipped >= 8

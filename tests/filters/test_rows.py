@@ -422,3 +422,19 @@ def test_the_command_corner_holds_headroom_back_only_on_rows_a_command_in_the_bo
         np.testing.assert_allclose(command_corner, [10.0, 0.2 * (1.0 - headroom), 0.1 * (1.0 - headroom)])
         kept = families.ramp_corners(rows, velocity, 0.5, headroom, box=(lower, upper))
         assert 0 not in kept.point               # the row no command can violate is left out
+
+
+def test_box_range_is_each_rows_largest_and_smallest_left_side_at_the_boxs_corners():
+    """A linear row's extremes over a box are at its corners: ``box_range`` gives both, the largest being
+    ``worst_case``'s to the bit."""
+    rng = np.random.default_rng(7)
+    G = rng.normal(size=(50, 4))
+    G[::5, 1] = 0.0
+    lower = rng.uniform(-1.0, 0.0, 4)
+    upper = lower + rng.uniform(0.0, 2.0, 4)
+    upper[3] = lower[3]                      # a flat side
+    corners = np.array(np.meshgrid(*zip(lower, upper, strict=True))).T.reshape(-1, 4)
+    largest, smallest = families.box_range(G, lower, upper)
+    assert np.allclose(largest, (G @ corners.T).max(axis=1), rtol=0.0, atol=1e-12)
+    assert np.allclose(smallest, (G @ corners.T).min(axis=1), rtol=0.0, atol=1e-12)
+    assert np.array_equal(largest, families.worst_case(G, lower, upper))
