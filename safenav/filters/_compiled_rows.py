@@ -436,10 +436,11 @@ def sqp_clearance_rows(rows, columns, centre_jacobian, dx, dy, inverse_radii, re
 
 @_jit
 def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, buffer_slack, slacks, candidates,
-                 working, tolerance):
+                 working, tolerance, per_point):
     """mpc.sqp.DirectSQP.solve, a round's check: every checked row linearised at the QP's answer (through the
     centres' displacement ``centre_jacobian @ move``), the mask of those it misses by more than ``tolerance``
-    [m] that are not in the QP yet."""
+    [m] that are not in the QP yet; with ``per_point``, of each point's such rows the one it misses most (the
+    first column of a tie)."""
     count, columns = dx.shape
     moved_x = np.empty(columns)
     moved_y = np.empty(columns)
@@ -452,6 +453,7 @@ def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, b
         moved_x[c], moved_y[c] = sx, sy
     violated = np.zeros(count * columns, dtype=np.bool_)
     for i in range(count):
+        worst, pick = -tolerance, -1
         for c in range(columns):
             flat = i * columns + c
             if working[flat] or not candidates[flat]:
@@ -461,7 +463,12 @@ def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, b
             linearised *= inverse_radii[i, c]
             linearised += values[i, c]
             linearised += relief[i, c] * buffer_slack + slacks[i]
-            violated[flat] = linearised < -tolerance
+            if not per_point:
+                violated[flat] = linearised < -tolerance
+            elif linearised < worst:
+                worst, pick = linearised, flat
+        if pick >= 0:
+            violated[pick] = True
     return violated
 
 

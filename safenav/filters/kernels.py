@@ -108,7 +108,7 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.sqp_clearance_rows(np.array([0, 3], dtype=np.intp), 2, jacobian, dx, dy, 1.0 / radii, radii, values,
                                np.zeros(2), matrix, 1, 2, np.array([3, 4], dtype=np.intp))
     kernels.sqp_violated(jacobian, np.zeros(2), dx, dy, 1.0 / radii, values, radii, 0.0, np.zeros(2), candidates,
-                         working, 1e-9)
+                         working, 1e-9, True)
     kernels.inside_polygon(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), points)
     kernels.nearest_per_bin(np.array([0.1, -2.0]), np.array([0.5, 0.2]), 4)
     # the MPC's check of a plan: two periods, one disk

@@ -115,3 +115,47 @@ def test_a_slack_per_point_changes_nothing_where_no_slack_is_needed_and_relaxes_
     shared, split = (safety.backend.solve(stuck._replace(slack_groups=groups))
                      for groups in (None, np.arange(2)))
     assert shared.slack > 0.0 and split.point_slacks[0] > 0.0 and split.point_slacks[1] == pytest.approx(0.0)
+
+
+def crowded_problems(count: int) -> tuple[MPCSafetyFilter, list[sqp.PlanNLP]]:
+    """The m2wr's wall problems with their points pulled halfway towards the base and a slack per point: most
+    points inside the planned radius of most knots, as when the MPC splits its slack beside a wall it is in."""
+    safety, problems = wall_problems("m2wr", 0.02, count)
+    return safety, [nlp._replace(points=0.5 * nlp.points, slack_groups=np.arange(nlp.points.shape[0]))
+                    for nlp in problems]
+
+
+def test_a_slack_per_point_solves_with_the_slacks_and_rows_it_needs_and_ends_where_every_one_would(monkeypatch):
+    """With a slack per point each QP has the slacks of the points with a row in it, and each round adds a point's
+    most violated row: the plans are those of QPs with every slack and every violated row added at once (numpy
+    rows, the reductions taken out), from QPs a fraction of the size."""
+    safety, problems = crowded_problems(12)
+    safety.backend.kernels = None
+    sizes: dict[str, list[tuple[int, int]]] = {"reduced": [], "every": []}
+    solve = safety.backend.qp.solve
+    for name in sizes:
+        if name == "every":
+            monkeypatch.setattr(sqp, "_most_missed_per_point", lambda missed, linearised: missed)
+            monkeypatch.setattr(sqp._Variables, "select", lambda self, row_points: (self.every, self.slack_column))
+        monkeypatch.setattr(safety.backend.qp, "solve",
+                            lambda qp, name=name: sizes[name].append(qp.G.shape) or solve(qp))
+        outcomes = [safety.backend.solve(nlp) for nlp in problems]
+        if name == "reduced":
+            reduced = outcomes
+    for fast, full in zip(reduced, outcomes, strict=True):
+        assert fast.status == full.status == "converged"
+        np.testing.assert_allclose(fast.knots, full.knots, rtol=0.0, atol=1e-9)
+        np.testing.assert_allclose(fast.point_slacks, full.point_slacks, rtol=0.0, atol=1e-9)
+    assert max(rows for rows, _ in sizes["every"]) > 500
+    assert max(rows for rows, _ in sizes["reduced"]) < 0.3 * max(rows for rows, _ in sizes["every"])
+    assert min(columns for _, columns in sizes["reduced"]) < min(columns for _, columns in sizes["every"])
+
+
+def test_the_compiled_sqp_plans_the_crowded_problems_as_numpy_does():
+    safety, problems = crowded_problems(12)
+    assert safety.backend.kernels is not None
+    compiled = [safety.backend.solve(nlp) for nlp in problems]
+    safety.backend.kernels = None
+    for fast, reference in zip(compiled, [safety.backend.solve(nlp) for nlp in problems], strict=True):
+        assert fast.status == reference.status == "converged"
+        np.testing.assert_allclose(fast.knots, reference.knots, rtol=0.0, atol=1e-9)

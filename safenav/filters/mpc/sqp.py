@@ -21,25 +21,27 @@ buffer slack ``s_b`` (cheap) may use it, ``relief_od`` being the share of the bu
 point has (0 for a point already nearer than the guaranteed radius, which may not be
 approached at all); ``s_h`` (heavy) relaxes the guaranteed radius itself.
 
-**The solvers.** :class:`DirectSQP` (default): casadi gives the knot poses and their exact
-Jacobian with respect to the knots' commands (:class:`~safenav.filters.mpc.nlp.PlanModel`,
-one Function per layout, built with the filter, evaluated into buffers it owns), each SQP
-step's QP (the cost's own constant Hessian, the clearance rows linearised) is assembled in
-numpy without loops over points (every row as a (point, knot and disk) array entry) and
-solved by a :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by default, the
-CBF's back-end interface), with full steps from the warm start, until the step is below
-:data:`STEP_TOLERANCE`. Where the steps contract slowly along one direction (the Hessian
-leaves the rows' curvature out) they are extrapolated to the end of their geometric series
-(:data:`EXTRAPOLATION_WINDOW`); the fixed point, and the test of convergence on a QP's own
-step, are unchanged. Only the clearance rows that can bind are passed to the QP; any other
-row its answer violates is added and the QP solved again, so each step is the step of the QP
-with every row. The products of a step are einsum contractions, not BLAS calls (a product
-large enough for BLAS to thread can stall for milliseconds on a busy machine). The deadline is
-checked before every step (an iteration, or another round of rows for its QP): a step is begun
-only when it can end before the deadline, lasting as long as the caller's estimate (``step``)
-or the longest step so far (:class:`~safenav.filters.deadline.StepClock`).
-:class:`~safenav.filters.mpc.nlp.CasadiNLP` hands the same NLP to casadi's ``sqpmethod``
-(the reference) or Ipopt.
+**The solvers.** :class:`DirectSQP` (default): casadi gives the knot poses and their exact Jacobian
+with respect to the knots' commands (:class:`~safenav.filters.mpc.nlp.PlanModel`, one Function per
+layout, built with the filter, evaluated into buffers it owns), each SQP step's QP (the cost's own
+constant Hessian, the clearance rows linearised) is assembled in numpy without loops over points
+(every row as a (point, knot and disk) array entry) and solved by a
+:class:`~safenav.filters.qp.QPBackend` (DAQP called directly by default, the CBF's back-end
+interface), with full steps from the warm start, until the step is below :data:`STEP_TOLERANCE`.
+Where the steps contract slowly along one direction (the Hessian leaves the rows' curvature out)
+they are extrapolated to the end of their geometric series (:data:`EXTRAPOLATION_WINDOW`); the fixed
+point, and the test of convergence on a QP's own step, are unchanged. Only the clearance rows that
+can bind are passed to the QP; any other row its answer violates is added and the QP solved again,
+so each step is the step of the QP with every row. With a slack per point (``slack_groups``) the QP
+has the slacks of the points with a row in it (any other is 0 at the optimum), and of each point's
+violated rows the most violated is added (its slack is what covers the others): adding every one
+made QPs of a thousand rows and a hundred variables, 5-20 ms in DAQP; one row a point settles in a
+round or two. The products of a step are einsum contractions, not BLAS calls (a product large enough for
+BLAS to thread can stall for milliseconds on a busy machine). The deadline is checked before every
+step (an iteration, or another round of rows for its QP): a step is begun only when it can end
+before the deadline, lasting as long as the caller's estimate (``step``) or the longest step so far
+(:class:`~safenav.filters.deadline.StepClock`). :class:`~safenav.filters.mpc.nlp.CasadiNLP` hands
+the same NLP to casadi's ``sqpmethod`` (the reference) or Ipopt.
 """
 
 from __future__ import annotations
@@ -189,6 +191,59 @@ class _LayoutData(NamedTuple):
     """Whether ``model`` is the every-period one and the derivatives are summed per block (``hold >= 2``)."""
 
 
+def _most_missed_per_point(missed: np.ndarray, linearised: np.ndarray) -> np.ndarray:
+    """Of the rows ``missed`` (a flat mask over ``linearised``'s ``(points, columns)``), each point's most missed (the
+    first column of a tie)."""
+    values = np.where(missed.reshape(linearised.shape), linearised, np.inf)
+    worst = np.argmin(values, axis=1)
+    points = np.flatnonzero(np.isfinite(values[np.arange(values.shape[0]), worst]))
+    picked = np.zeros_like(missed)
+    picked[points * linearised.shape[1] + worst[points]] = True
+    return picked
+
+
+class _Variables:
+    """Which of an SQP's variables (the knots' commands, the buffer slack, the slacks) a QP has: all of them, or,
+    with a slack per group, those before the slacks and the slacks of the groups with a row in the QP."""
+
+    def __init__(self, n_vars: int, n_linear: int, n_shared: int, slack_column: np.ndarray) -> None:
+        self.n_vars, self.n_linear, self.n_shared = n_vars, n_linear, n_shared
+        self.slack_column = slack_column
+        self.every = np.arange(n_vars)
+        self._position = np.full(n_vars, -1, dtype=np.intp)
+
+    def select(self, row_points: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The QP's columns (indices of the variables), and each point's slack column in the QP, for rows of the
+        points ``row_points`` (``None``: every variable, one slack for every row)."""
+        if row_points is None:
+            return self.every, self.slack_column
+        slacks = np.unique(self.slack_column[row_points])
+        columns = np.concatenate((self.every[:self.n_shared], slacks))
+        if columns.size == self.n_vars:
+            return self.every, self.slack_column
+        position = self._position
+        position[:] = -1
+        position[columns] = np.arange(columns.size)
+        return columns, position[self.slack_column]     # -1 for a point with no row: never written
+
+    def fixed_columns(self, columns: np.ndarray) -> np.ndarray:
+        """Indices into the active-set state of the variables' bounds and the linear rows, for a QP's columns."""
+        return np.concatenate((columns, self.n_vars + np.arange(self.n_linear)))
+
+    def expand(self, columns: np.ndarray, x: np.ndarray, active: np.ndarray | None
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+        """A QP's answer and active set over every variable: a slack left out is 0, at its lower bound."""
+        if columns.size == self.n_vars:
+            return x, active
+        full = np.zeros(self.n_vars)
+        full[columns] = x
+        if active is None:
+            return full, None
+        state = np.full(self.n_vars, -1, dtype=active.dtype)
+        state[columns] = active[:columns.size]
+        return full, np.concatenate((state, active[columns.size:]))
+
+
 class DirectSQP:
     """Sequential quadratic programming over a :class:`~safenav.filters.qp.QPBackend` (see the module docstring).
 
@@ -312,6 +367,10 @@ class DirectSQP:
         gradient[2 * n + 1:] = self.cost.slack_weight
         # Each point's slack column.
         slack_column = 2 * n + 1 + (groups if n_groups > 1 else np.zeros(nlp.points.shape[0], dtype=np.intp))
+        # With a slack per group, each QP has the slacks of the groups with a row in it and no others: a slack in
+        # no row sits at its bound 0 at the optimum (its cost rises from there), so the answer is the same, and
+        # the QP has a few dozen variables rather than a hundred (DAQP's time grows with their square).
+        variables = _Variables(n_vars, n_linear, 2 * n + 1, slack_column)
         compiled = self.kernels
         if compiled is not None:
             slack_column = slack_column.astype(np.intp, copy=False)
@@ -378,14 +437,16 @@ class DirectSQP:
                 rows = np.flatnonzero(working)
                 row_relief = relief.ravel()[rows]
                 row_values = flat_values[rows]
+                qp_columns, qp_slack_column = variables.select(rows // n_columns if n_groups > 1 else None)
                 # The rows as the QP writes them, -gradient . x <= value - gradient . knots.
-                matrix = np.empty((n_linear + rows.size, n_vars))
-                matrix[:n_linear] = linear
+                every = qp_columns.size == n_vars
+                matrix = np.empty((n_linear + rows.size, qp_columns.size))
+                matrix[:n_linear] = linear if every else linear[:, qp_columns]
                 clearance = matrix[n_linear:, :2 * n]
                 if compiled is not None:
                     row_upper = compiled.sqp_clearance_rows(rows, n_columns, centre_jacobian, dx, dy, inverse_radii,
                                                             relief, values, knots, matrix, n_linear, 2 * n,
-                                                            slack_column)
+                                                            qp_slack_column)
                 else:
                     column = rows % n_columns
                     scale = inverse_radii.ravel()[rows, None]
@@ -394,33 +455,40 @@ class DirectSQP:
                     matrix[n_linear:, 2 * n] = -row_relief
                     if n_groups > 1:
                         matrix[n_linear:, 2 * n + 1:] = 0.0
-                        matrix[n_linear + np.arange(rows.size), slack_column[rows // n_columns]] = -1.0
+                        matrix[n_linear + np.arange(rows.size), qp_slack_column[rows // n_columns]] = -1.0
                     else:
                         matrix[n_linear:, 2 * n + 1] = -1.0
                     row_upper = row_values + np.einsum("rj,j->r", clearance, knots)
-                guess = None if fixed_state is None else np.concatenate((fixed_state, row_state[rows]))
-                qp = QPData(hessian, gradient, matrix, np.concatenate((linear_high, row_upper)),
-                            lower_bounds, upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))),
-                            guess)
+                guess = None if fixed_state is None else np.concatenate(
+                    (fixed_state if every else fixed_state[variables.fixed_columns(qp_columns)], row_state[rows]))
+                if every:
+                    qp = QPData(hessian, gradient, matrix, np.concatenate((linear_high, row_upper)), lower_bounds,
+                                upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))), guess)
+                else:
+                    qp = QPData(hessian[np.ix_(qp_columns, qp_columns)], gradient[qp_columns], matrix,
+                                np.concatenate((linear_high, row_upper)), lower_bounds[qp_columns],
+                                upper_bounds[qp_columns], np.concatenate((linear_low, np.full(rows.size, -np.inf))),
+                                guess)
                 outcome = self.qp.solve(qp)
-                answer = outcome.x
-                if answer is None:
+                if outcome.x is None:
                     return NLPOutcome(None, 0.0, 0.0, f"QP failed ({outcome.status})", iterations,
                                       clock() - start_time, longest_step=steps.finished())
+                answer, active = variables.expand(qp_columns, outcome.x, outcome.active)
                 # Every row linearised at the answer, through the centres' displacement.
                 move = answer[:2 * n] - knots
                 slacks = answer[slack_column]                                           # (M,): each point's
                 row_state = np.zeros(radii.size, dtype=np.int8)
-                if outcome.active is not None:
-                    fixed_state = outcome.active[:n_fixed]
-                    row_state[rows] = outcome.active[n_fixed:]
+                if active is not None:
+                    fixed_state = active[:n_fixed]
+                    row_state[rows] = active[n_fixed:]
                 else:
                     row_state[rows] = (row_values - np.einsum("rj,j->r", clearance, move)
                                        + row_relief * answer[2 * n] + slacks[rows // n_columns]
                                        ) < ACTIVE_TOLERANCE
                 if compiled is not None:
                     violated = compiled.sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief,
-                                                     float(answer[2 * n]), slacks, candidates, working, ROW_TOLERANCE)
+                                                     float(answer[2 * n]), slacks, candidates, working, ROW_TOLERANCE,
+                                                     n_groups > 1)
                 else:
                     moved_x, moved_y = np.einsum("acj,j->ac", centre_jacobian, move)           # (K D,) each
                     linearised = dx * moved_x
@@ -430,6 +498,8 @@ class DirectSQP:
                     linearised += relief * answer[2 * n] + slacks[:, None]
                     violated = candidates & (linearised.ravel() < -ROW_TOLERANCE)
                     violated &= ~working
+                    if n_groups > 1 and violated.any():
+                        violated = _most_missed_per_point(violated, linearised)
                 if not violated.any():
                     break
                 working |= violated
