@@ -128,6 +128,34 @@ def time_filter(filt: SafetyFilter, cases: Sequence[tuple[LaserScan, np.ndarray]
             "qp_fraction": len(qp_total) / max(len(total), 1), "statuses": statuses}
 
 
+class NLPSolves:
+    """Times every NLP solve of an MPC filter (its back-end's ``solve``), apart by whether each point had its own
+    slack; :meth:`detach` gives the filter its back-end back."""
+
+    def __init__(self, mpc: MPCSafetyFilter) -> None:
+        self.mpc, self.solve = mpc, mpc.backend.solve
+        self.times: dict[str, list[float]] = {"shared": [], "per_point": []}
+
+        def timed(nlp: Any, *args: Any, **kwargs: Any) -> Any:
+            outcome = self.solve(nlp, *args, **kwargs)
+            self.times["shared" if nlp.slack_groups is None else "per_point"].append(outcome.solve_time)
+            return outcome
+
+        mpc.backend.solve = timed  # type: ignore[method-assign]
+
+    def detach(self) -> None:
+        self.mpc.backend.solve = self.solve  # type: ignore[method-assign]
+
+    def summary(self, solving_calls: int) -> dict[str, Any]:
+        """Median, p99 and max of every solve and of each kind, and the solves per solving call."""
+        def stats(samples: list[float]) -> dict[str, float]:
+            return {**summary(samples), "max_us": float(np.max(samples) * 1e6) if samples else float("nan")}
+
+        every = self.times["shared"] + self.times["per_point"]
+        return {"all": stats(every), "shared": stats(self.times["shared"]),
+                "per_point": stats(self.times["per_point"]), "per_solving_call": len(every) / max(solving_calls, 1)}
+
+
 def time_baseline(solve: Callable[[np.ndarray, LaserScan], Any], cases: Sequence[tuple[LaserScan, np.ndarray]]
                   ) -> dict[str, Any]:
     samples = []
@@ -522,8 +550,11 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
         mpc_cases = cases[: args.mpc_calls]
         time_filter(mpc, mpc_cases[:50])
         mpc.reset()
+        nlp_solves = NLPSolves(mpc)
         result = time_filter(mpc, mpc_cases)
-        results["mpc"] = {**result, "horizon": mpc.horizon, "points": mpc.config.n_points}
+        nlp_solves.detach()
+        results["mpc"] = {**result, "horizon": mpc.horizon, "points": mpc.config.n_points,
+                          "nlp_solves": nlp_solves.summary(result["qp_calls"]["n"])}
         rows.append([f"mpc N={mpc.horizon} K={mpc.config.n_points} (independent calls)",
                      result["end_to_end"]["median_us"],
                      result["end_to_end"]["p99_us"], result["qp_calls"]["median_us"], result["qp_calls"]["p99_us"],
@@ -533,6 +564,16 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     print()
     print(markdown_table(["filter", "median µs", "p99 µs", "QP-call median µs", "QP-call p99 µs",
                           "solve median µs", "solve p99 µs", "calls with QP", "speed-up vs baseline"], rows))
+    if args.mpc:
+        solves = results["mpc"]["nlp_solves"]
+        print()
+        print(f"the MPC's NLP solves (its SQP from a warm start; a solving call makes one or more: points swapped into "
+              f"its slots, a slack per point), {solves['per_solving_call']:.2f} per solving call:")
+        print(markdown_table(["NLP solves", "n", "median µs", "p99 µs", "max µs"],
+                             [[name, solves[key]["n"], solves[key]["median_us"], solves[key]["p99_us"],
+                               solves[key]["max_us"]]
+                              for name, key in [("all", "all"), ("one slack for every row", "shared"),
+                                                ("a slack per point", "per_point")]]))
 
     if args.closed_loop:
         results["closed_loop"] = closed_loop(args.closed_loop_filters.split(","), args.closed_loop_seeds)

@@ -73,3 +73,17 @@ def test_the_deadline_scenario_times_every_filter_at_the_budget_asked(tmp_path, 
         assert row["calls"]["n"] == 2 * 20 == sum(row["statuses"].values())
         assert 0 <= row["deadline_fallbacks"] <= row["statuses"].get("fallback", 0)
     assert "baseline" in rows[0]
+
+
+def test_the_mpc_table_times_its_nlp_solves_apart_by_slack(tmp_path, capsys):
+    """``--mpc`` times every NLP solve of the MPC's solving calls, one slack for every row or a slack per point."""
+    path = tmp_path / "mpc.json"
+    assert filter_latency.main(["--robot", "m2wr", "--scenes", "6", "--per-scene", "10", "--solvers", "daqp",
+                                "--baseline-calls", "2", "--mpc", "--mpc-calls", "60", "--json", str(path)]) == 0
+    mpc = json.loads(path.read_text())["mpc"]
+    solves = mpc["nlp_solves"]
+    assert mpc["qp_calls"]["n"] > 0 and solves["all"]["n"] >= mpc["qp_calls"]["n"]
+    assert solves["all"]["n"] == solves["shared"]["n"] + solves["per_point"]["n"]
+    assert solves["per_solving_call"] == pytest.approx(solves["all"]["n"] / mpc["qp_calls"]["n"])
+    assert solves["all"]["max_us"] >= solves["all"]["p99_us"] >= solves["all"]["median_us"] > 0.0
+    assert "the MPC's NLP solves" in capsys.readouterr().out
