@@ -540,17 +540,24 @@ def sweep_rows(geo: Geometry, velocity: np.ndarray, accel: float, alpha: float, 
 
 def worst_case(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Largest left side of each row of ``G`` ``(k, 4)`` over the finite box ``lower <= z <= upper``."""
-    # max(g l, g u) = g (l + u) / 2 + |g| (u - l) / 2: two matrix-vector products (a third of the time of the
-    # elementwise form for a few hundred rows; equal to rounding). Finite bounds only: an infinite one gives
-    # inf - inf here. Both callers pass the velocity box and the auxiliaries' bounds, finite.
-    return G @ (0.5 * (lower + upper)) + np.abs(G) @ (0.5 * (upper - lower))
+    centre, spread = _box_terms(G, lower, upper)
+    return centre + spread
 
 
 def box_range(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Largest and smallest left side of each row of ``G`` ``(k, 4)`` over the finite box ``lower <= z <= upper``
-    (the first is :func:`worst_case`, from the same two products)."""
-    centre, spread = G @ (0.5 * (lower + upper)), np.abs(G) @ (0.5 * (upper - lower))
+    (the first is :func:`worst_case`'s)."""
+    centre, spread = _box_terms(G, lower, upper)
     return centre + spread, centre - spread
+
+
+def _box_terms(G: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's left side at the box's centre and its spread over the box: the extremes are their sum and
+    difference."""
+    # max(g l, g u) = g (l + u) / 2 + |g| (u - l) / 2: two matrix-vector products (a third of the time of the
+    # elementwise form for a few hundred rows; equal to rounding). Finite bounds only: an infinite one gives
+    # inf - inf here. Every caller passes the velocity box and the auxiliaries' bounds, finite.
+    return G @ (0.5 * (lower + upper)), np.abs(G) @ (0.5 * (upper - lower))
 
 
 def ramp_corners(rows: Rows, velocity: np.ndarray | None, lag: float, headroom: float = 0.0,

@@ -136,7 +136,7 @@ def test_a_slack_per_point_solves_with_the_slacks_and_rows_it_needs_and_ends_whe
     for name in sizes:
         if name == "every":
             monkeypatch.setattr(sqp, "_most_missed_per_point", lambda missed, linearised: missed)
-            monkeypatch.setattr(sqp._Variables, "select", lambda self, row_points: (self.every, self.slack_column))
+            monkeypatch.setattr(sqp._Variables, "select", lambda self, row_points: (None, self.slack_column))
         monkeypatch.setattr(safety.backend.qp, "solve",
                             lambda qp, name=name: sizes[name].append(qp.G.shape) or solve(qp))
         outcomes = [safety.backend.solve(nlp) for nlp in problems]

@@ -203,37 +203,47 @@ def _most_missed_per_point(missed: np.ndarray, linearised: np.ndarray) -> np.nda
 
 
 class _Variables:
-    """Which of an SQP's variables (the knots' commands, the buffer slack, the slacks) a QP has: all of them, or,
-    with a slack per group, those before the slacks and the slacks of the groups with a row in the QP."""
+    """Which of an SQP's variables (the knots' commands, the buffer slack, the slacks) a QP has: all of them
+    (``columns`` ``None``), or, with a slack per group, those before the slacks and the slacks of the groups with a
+    row in the QP (``columns``: their indices)."""
 
     def __init__(self, n_vars: int, n_linear: int, n_shared: int, slack_column: np.ndarray) -> None:
-        self.n_vars, self.n_linear, self.n_shared = n_vars, n_linear, n_shared
+        self.n_vars, self.n_shared = n_vars, n_shared
         self.slack_column = slack_column
-        self.every = np.arange(n_vars)
+        self._linear_state = n_vars + np.arange(n_linear)   # the linear rows' places in the active-set state
         self._position = np.full(n_vars, -1, dtype=np.intp)
 
-    def select(self, row_points: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """The QP's columns (indices of the variables), and each point's slack column in the QP, for rows of the
-        points ``row_points`` (``None``: every variable, one slack for every row)."""
+    def select(self, row_points: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray]:
+        """The QP's columns, and each point's slack column in the QP, for rows of the points ``row_points``
+        (``None``: one slack for every row, so every variable)."""
         if row_points is None:
-            return self.every, self.slack_column
+            return None, self.slack_column
         slacks = np.unique(self.slack_column[row_points])
-        columns = np.concatenate((self.every[:self.n_shared], slacks))
-        if columns.size == self.n_vars:
-            return self.every, self.slack_column
+        if self.n_shared + slacks.size == self.n_vars:
+            return None, self.slack_column
+        columns = np.concatenate((np.arange(self.n_shared), slacks))
         position = self._position
         position[:] = -1
         position[columns] = np.arange(columns.size)
         return columns, position[self.slack_column]     # -1 for a point with no row: never written
 
-    def fixed_columns(self, columns: np.ndarray) -> np.ndarray:
-        """Indices into the active-set state of the variables' bounds and the linear rows, for a QP's columns."""
-        return np.concatenate((columns, self.n_vars + np.arange(self.n_linear)))
+    @staticmethod
+    def restrict(columns: np.ndarray | None, hessian: np.ndarray, gradient: np.ndarray, lower: np.ndarray,
+                 upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The cost and the bounds over a QP's columns."""
+        if columns is None:
+            return hessian, gradient, lower, upper
+        return hessian[np.ix_(columns, columns)], gradient[columns], lower[columns], upper[columns]
 
-    def expand(self, columns: np.ndarray, x: np.ndarray, active: np.ndarray | None
+    def state(self, columns: np.ndarray | None, fixed_state: np.ndarray) -> np.ndarray:
+        """The active-set state of the variables' bounds and the linear rows (over every variable) for a QP's
+        columns."""
+        return fixed_state if columns is None else fixed_state[np.concatenate((columns, self._linear_state))]
+
+    def expand(self, columns: np.ndarray | None, x: np.ndarray, active: np.ndarray | None
                ) -> tuple[np.ndarray, np.ndarray | None]:
         """A QP's answer and active set over every variable: a slack left out is 0, at its lower bound."""
-        if columns.size == self.n_vars:
+        if columns is None:
             return x, active
         full = np.zeros(self.n_vars)
         full[columns] = x
@@ -439,9 +449,8 @@ class DirectSQP:
                 row_values = flat_values[rows]
                 qp_columns, qp_slack_column = variables.select(rows // n_columns if n_groups > 1 else None)
                 # The rows as the QP writes them, -gradient . x <= value - gradient . knots.
-                every = qp_columns.size == n_vars
-                matrix = np.empty((n_linear + rows.size, qp_columns.size))
-                matrix[:n_linear] = linear if every else linear[:, qp_columns]
+                matrix = np.empty((n_linear + rows.size, n_vars if qp_columns is None else qp_columns.size))
+                matrix[:n_linear] = linear if qp_columns is None else linear[:, qp_columns]
                 clearance = matrix[n_linear:, :2 * n]
                 if compiled is not None:
                     row_upper = compiled.sqp_clearance_rows(rows, n_columns, centre_jacobian, dx, dy, inverse_radii,
@@ -459,16 +468,12 @@ class DirectSQP:
                     else:
                         matrix[n_linear:, 2 * n + 1] = -1.0
                     row_upper = row_values + np.einsum("rj,j->r", clearance, knots)
-                guess = None if fixed_state is None else np.concatenate(
-                    (fixed_state if every else fixed_state[variables.fixed_columns(qp_columns)], row_state[rows]))
-                if every:
-                    qp = QPData(hessian, gradient, matrix, np.concatenate((linear_high, row_upper)), lower_bounds,
-                                upper_bounds, np.concatenate((linear_low, np.full(rows.size, -np.inf))), guess)
-                else:
-                    qp = QPData(hessian[np.ix_(qp_columns, qp_columns)], gradient[qp_columns], matrix,
-                                np.concatenate((linear_high, row_upper)), lower_bounds[qp_columns],
-                                upper_bounds[qp_columns], np.concatenate((linear_low, np.full(rows.size, -np.inf))),
-                                guess)
+                guess = None if fixed_state is None else np.concatenate((variables.state(qp_columns, fixed_state),
+                                                                          row_state[rows]))
+                qp_hessian, qp_gradient, qp_lower, qp_upper = variables.restrict(
+                    qp_columns, hessian, gradient, lower_bounds, upper_bounds)
+                qp = QPData(qp_hessian, qp_gradient, matrix, np.concatenate((linear_high, row_upper)), qp_lower,
+                            qp_upper, np.concatenate((linear_low, np.full(rows.size, -np.inf))), guess)
                 outcome = self.qp.solve(qp)
                 if outcome.x is None:
                     return NLPOutcome(None, 0.0, 0.0, f"QP failed ({outcome.status})", iterations,
