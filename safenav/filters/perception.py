@@ -593,31 +593,74 @@ class SeenFree:
         self.clear()
 
     def __len__(self) -> int:
-        return sum(len(group[0]) for group in self._groups.values())
+        return sum(group.count for group in self._groups.values())
 
     def clear(self) -> None:
         """Forget every kept scan."""
-        # Per beam layout (angle_min, increment, n_beams): lidar poses in the current base frame (F, 3), the
-        # odometry error bound accumulated since each was kept (translation, turn) and the turns' lever beyond
-        # the current base, sum of each carry's turn times the base's path since that carry (F, 3), the
-        # windows' smallest readings (F, W, n), and the order they were kept in (F,).
-        self._groups: dict[tuple[float, float, int], list[np.ndarray]] = {}
+        self._groups: dict[tuple[float, float, int], _KeptScans] = {}     # per beam layout
         self._since: Pose2D | None = None      # the base frame in the frame of the last kept scan
         self._count = 0
+        self._rebased()
+
+    def _rebased(self) -> None:
+        """Start the carries' sums afresh (the kept poses and errors are as of the current base frame)."""
+        self._carries = 0           # carries since the last rebase
+        self._frame = Pose2D()      # the current base frame in the frame of the last rebase
+        self._path = 0.0            # the base's path since then [m]
+        self._shift = 0.0           # the error bound accumulated since then: translation [m] ...
+        self._turn = 0.0            # ... and turn [rad]
+        self._lever = 0.0           # the sum over those carries of the turn accumulated before each times its path [m]
 
     def carry(self, motion: Pose2D, uncertainty_rate: tuple[float, float] = (0.0, 0.0)) -> None:
         """Account for the motion to a new base frame, which is at ``motion`` in the old one (as
-        :meth:`PointMemory.carry`)."""
+        :meth:`PointMemory.carry`).
+
+        The motions and error bounds are summed, and the kept scans moved only when they are used (a kept scan
+        is used when another is stored and when :meth:`certified` is asked): a call of a filter that does not
+        translate towards an unseen side moves nothing.
+        """
         if self._since is not None:
             self._since = self._since.compose(motion)
-        cos, sin = math.cos(motion.yaw), math.sin(motion.yaw)
+        if self._groups:
+            self._carries += 1
+            self._frame = self._frame.compose(motion)
+            path = math.hypot(motion.x, motion.y)
+            self._lever += self._turn * path        # earlier turns' centres fall behind
+            self._path += path
+            self._shift += uncertainty_rate[0]
+            self._turn += uncertainty_rate[1]
+
+    def _rebase(self) -> None:
+        """Move the kept scans into the current base frame and add the carries' error bounds since the last rebase.
+
+        For each carry ``c`` (path ``s_c``, error bound ``(e_c, r_c)``), a kept scan's turn error grows by ``r_c``,
+        its translation error by ``e_c`` and its lever by its turn error before the carry times ``s_c``; summed
+        over the carries since the last rebase, with ``E`` its errors then, that is ``E + sum e_c``, ``E_turn +
+        sum r_c`` and ``E_lever + E_turn sum s_c + sum_c (r_1 + ... + r_(c-1)) s_c``.
+        """
+        if not self._carries:
+            return
+        frame = self._frame
+        cos, sin = math.cos(frame.yaw), math.sin(frame.yaw)
         for group in self._groups.values():
-            poses, error = group[0], group[1]
-            dx, dy = poses[:, 0] - motion.x, poses[:, 1] - motion.y
+            poses, error = group.poses, group.error
+            dx, dy = poses[:, 0] - frame.x, poses[:, 1] - frame.y
             poses[:, 0], poses[:, 1] = cos * dx + sin * dy, -sin * dx + cos * dy
-            poses[:, 2] -= motion.yaw
-            error[:, 2] += error[:, 1] * math.hypot(motion.x, motion.y)   # earlier turns' centres fall behind
-            error[:, :2] += uncertainty_rate
+            poses[:, 2] -= frame.yaw
+            error[:, 2] += error[:, 1] * self._path + self._lever
+            error[:, 0] += self._shift
+            error[:, 1] += self._turn
+        self._rebased()
+
+    def kept(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per beam layout, the kept scans' lidar poses ``(F, 3)`` in the current base frame [m, m, rad] and their
+        odometry error bounds ``(F, 3)`` (translation [m], turn [rad], the turns' lever beyond the base [m])."""
+        self._rebase()
+        kept = []
+        for group in self._groups.values():
+            slots = group.slots()
+            kept.append((group.poses[slots], group.error[slots]))
+        return kept
 
     def store(self, scans: tuple[LaserScan, ...], noise: float) -> None:
         """Keep ``scans`` (base frame, through their mounts) when the base has moved or turned far enough
@@ -627,25 +670,25 @@ class SeenFree:
             return
         self._since = Pose2D()
         self._count += 1
-        for scan in scans:
-            wraps = scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9
-            minima = _window_minima(_seen_ranges(scan, 2.0 * noise), wraps)
-            mount = scan.mount
+        self._rebase()
+        # Forget scans from lidars now out of range, then the oldest beyond the capacity (the new ones count).
+        for group in self._groups.values():
+            group.used &= np.hypot(group.poses[:, 0], group.poses[:, 1]) <= self.max_range
+        new = [scan for scan in scans if math.hypot(scan.mount.x, scan.mount.y) <= self.max_range]
+        orders = np.concatenate([group.order[group.used] for group in self._groups.values()]
+                                + [np.full(len(new), self._count)])
+        if orders.size > self.capacity:
+            oldest = np.sort(orders)[orders.size - self.capacity]
+            for group in self._groups.values():
+                group.used &= group.order >= oldest
+        for scan in new:
             key = (scan.angle_min, scan.angle_increment, scan.n_beams)
-            entry = [np.array([[mount.x, mount.y, mount.yaw]]), np.zeros((1, 3)), minima[None], np.array([self._count])]
             group = self._groups.get(key)
-            self._groups[key] = entry if group is None else [
-                np.concatenate((old, new)) for old, new in zip(group, entry, strict=True)]
-        # Forget scans from lidars now out of range, then the oldest beyond the capacity.
-        for key, group in list(self._groups.items()):
-            near = np.hypot(group[0][:, 0], group[0][:, 1]) <= self.max_range
-            self._groups[key] = [array[near] for array in group]
-        if len(self) > self.capacity:
-            order = np.sort(np.concatenate([group[3] for group in self._groups.values()]))
-            oldest = order[len(order) - self.capacity]
-            for key, group in list(self._groups.items()):
-                self._groups[key] = [array[group[3] >= oldest] for array in group]
-        self._groups = {key: group for key, group in self._groups.items() if len(group[0])}
+            if group is None:
+                group = self._groups[key] = _KeptScans(self.capacity, scan.n_beams,
+                                                       scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9)
+            group.keep(scan.mount, _seen_ranges(scan, 2.0 * noise), self._count)
+        self._groups = {key: group for key, group in self._groups.items() if group.count}
 
     def certified(self, centres: np.ndarray, distance: np.ndarray, radius: float) -> np.ndarray:
         """Which disks of ``radius`` [m] about ``centres`` ``(N, 2)`` [m] (at ``distance`` ``(N,)`` from the base
@@ -656,8 +699,11 @@ class SeenFree:
         point ``d`` from the base is off by at most ``sum(e_translation) + d sum(e_rotation) + sum(e_rotation
         path since)``.
         """
+        self._rebase()
         free = np.zeros(len(centres), dtype=bool)
-        for (angle_min, increment, n_beams), (poses, error, minima, _) in self._groups.items():
+        for (angle_min, increment, n_beams), group in self._groups.items():
+            slots = group.slots()
+            poses, error, minima = group.poses[slots], group.error[slots], group.minima(slots)
             # The centres in each kept lidar's frame.
             dx = centres[None, :, 0] - poses[:, 0:1]
             dy = centres[None, :, 1] - poses[:, 1:2]
@@ -675,8 +721,7 @@ class SeenFree:
             # to a power of two.
             level = np.ceil(np.log2(np.ceil(half * (1.0 / increment)) + 2.0)).astype(np.intp)
             usable = (index < n_beams) & (disk < reach) & (level < len(_WINDOWS))
-            seen = minima[np.arange(len(poses))[:, None], np.minimum(level, len(_WINDOWS) - 1),
-                          np.minimum(index, n_beams - 1)]
+            seen = minima[slots[:, None], np.minimum(level, len(_WINDOWS) - 1), np.minimum(index, n_beams - 1)]
             free |= np.any(usable & (seen >= reach + disk), axis=0)
         return free
 
@@ -703,6 +748,58 @@ class SeenFree:
         unseen = distance[~free] - radius
         reach = float(unseen[0]) if unseen.size else extent
         return max(min(reach, extent) - keep, 0.0)
+
+
+class _KeptScans:
+    """The kept scans of one beam layout, each in a slot of fixed arrays (keeping or forgetting one copies none of
+    the others).
+
+    Per slot: the lidar's pose (3,) and the odometry error bound accumulated since it was kept (translation, turn,
+    and the turns' lever beyond the base: the sum of each carry's turn times the base's path since that carry)
+    (3,), both as of the base frame of :class:`SeenFree`'s last rebase; the beams' seen ranges (n,) and the
+    windows' smallest of them (W, n), computed when first asked (:meth:`minima`); the order it was kept in.
+    """
+
+    def __init__(self, capacity: int, n_beams: int, wraps: bool) -> None:
+        self.poses = np.zeros((capacity, 3))
+        self.error = np.zeros((capacity, 3))
+        self.seen = np.empty((capacity, n_beams))
+        self._minima = np.empty((capacity, len(_WINDOWS), n_beams))
+        self._ready = np.zeros(capacity, dtype=bool)
+        self.order = np.zeros(capacity, dtype=np.int64)
+        self.used = np.zeros(capacity, dtype=bool)
+        self.wraps = wraps
+
+    @property
+    def count(self) -> int:
+        return int(np.count_nonzero(self.used))
+
+    def slots(self) -> np.ndarray:
+        """The slots in use, in the order their scans were kept."""
+        slots = np.flatnonzero(self.used)
+        return slots[np.argsort(self.order[slots], kind="stable")]
+
+    def keep(self, mount: Pose2D, seen: np.ndarray, order: int) -> None:
+        free = np.flatnonzero(~self.used)
+        if not free.size:       # more scans of this layout in one call than the capacity: grow
+            free = np.array([self.used.size])
+            self.poses, self.error, self.seen, self._minima, self._ready, self.order, self.used = (
+                np.concatenate((array, array[:1])) for array in (self.poses, self.error, self.seen, self._minima,
+                                                                  self._ready, self.order, self.used))
+        slot = int(free[0])
+        self.poses[slot] = (mount.x, mount.y, mount.yaw)
+        self.error[slot] = 0.0
+        self.seen[slot] = seen
+        self._ready[slot] = False
+        self.order[slot] = order
+        self.used[slot] = True
+
+    def minima(self, slots: np.ndarray) -> np.ndarray:
+        """The windows' smallest seen ranges of every slot ``(capacity, W, n)``, those of ``slots`` up to date."""
+        for slot in slots[~self._ready[slots]]:
+            self._minima[slot] = _window_minima(self.seen[slot], self.wraps)
+            self._ready[slot] = True
+        return self._minima
 
 
 def _window_minima(seen: np.ndarray, wraps: bool) -> np.ndarray:
@@ -753,12 +850,11 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
         and the bound of the error of its distance [m] and of its angle [rad]; a point ``d`` from
         the base is off by at most ``e_translation + d e_rotation`` after the motion.
     """
-    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    mean, change = 0.5 * (start + end), np.abs(end - start)
-    motion = unicycle_step(Pose2D(), float(mean[0]), float(mean[1]), elapsed)
-    rotation = 0.5 * elapsed * float(change[1])
-    drag = 0.5 * elapsed * max(abs(float(start[0])), abs(float(end[0]))) * rotation
-    return motion, (0.5 * elapsed * float(change[0]) + drag, rotation)
+    (v0, w0), (v1, w1) = (float(value) for value in start), (float(value) for value in end)   # floats: a call's
+    motion = unicycle_step(Pose2D(), 0.5 * (v0 + v1), 0.5 * (w0 + w1), elapsed)              # arithmetic, not arrays
+    rotation = 0.5 * elapsed * abs(w1 - w0)
+    drag = 0.5 * elapsed * max(abs(v0), abs(v1)) * rotation
+    return motion, (0.5 * elapsed * abs(v1 - v0) + drag, rotation)
 
 
 def motion_spread(points: np.ndarray, error: tuple[float, float]) -> np.ndarray:

@@ -443,6 +443,66 @@ def test_seen_free_travel_is_zero_until_the_space_behind_was_seen_and_grows_as_t
         assert 0.025 * step - allowed - keep >= 0.15 - robot.radius - 1e-9 or allowed == 0.0
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_seen_free_moves_its_scans_when_they_are_used_as_if_at_every_carry(seed):
+    # Carrying sums the motions and error bounds; the kept scans move when another is stored or one is asked
+    # whether space was seen free. Asked after every carry (one motion at a time, as every carry once moved
+    # them), the same poses and error bounds to rounding, and the same answers.
+    rng = np.random.default_rng(seed)
+    robot = preset("m2wr")
+    scene = _random_scene(rng)
+    lazy, eager = (SeenFree(max_range=3.0, capacity=6, step=(0.05, math.radians(10.0))) for _ in range(2))
+    pose, compared = Pose2D(), 0
+    for call in range(80):
+        if call % 3 == 0:
+            scan = synthetic_scan(robot, scene, pose)
+            lazy.store((scan,), 0.01)
+            eager.store((scan,), 0.01)
+        motion = unicycle_step(Pose2D(), float(rng.uniform(-0.5, 1.0)), float(rng.uniform(-2.0, 2.0)), 0.05)
+        rates = (float(rng.uniform(0.0, 0.01)), float(rng.uniform(0.0, 0.02)))
+        lazy.carry(motion, rates)
+        eager.carry(motion, rates)
+        pose = pose.compose(motion)
+        kept = eager.kept()
+        if call % 7 == 6:
+            centres = rng.uniform(-1.2, 1.2, (100, 2))
+            distance = np.hypot(centres[:, 0], centres[:, 1])
+            assert np.array_equal(lazy.certified(centres, distance, 0.02), eager.certified(centres, distance, 0.02))
+            for (poses, error), (eager_poses, eager_error) in zip(lazy.kept(), kept, strict=True):
+                compared += len(poses)
+                np.testing.assert_allclose(poses[:, :2], eager_poses[:, :2], rtol=0.0, atol=1e-12)
+                np.testing.assert_allclose(np.cos(poses[:, 2] - eager_poses[:, 2]), 1.0, rtol=0.0, atol=1e-12)
+                np.testing.assert_allclose(error, eager_error, rtol=1e-12, atol=1e-15)
+    assert len(lazy) == len(eager)
+    assert compared >= 20, compared
+
+
+def test_seen_free_keeps_the_newest_scans_within_range_up_to_its_capacity():
+    robot = preset("m2wr")
+    scene = Scene.of(Segment((2.0, -3.0), (2.0, 3.0)))
+    memory = SeenFree(max_range=1.0, capacity=3, step=(0.01, 1.0))
+    scan = synthetic_scan(robot, scene, Pose2D())
+    for _ in range(6):
+        memory.store((scan,), 0.0)
+        memory.carry(Pose2D(0.2, 0.0, 0.0))
+    (poses, error), = memory.kept()
+    # The three newest, oldest first: 0.6, 0.4 and 0.2 m behind their mount now (the 0.8 m one is out of range too).
+    np.testing.assert_allclose(poses[:, 0], [scan.mount.x - 0.6, scan.mount.x - 0.4, scan.mount.x - 0.2], atol=1e-12)
+    assert len(memory) == 3 and not error.any()
+    assert abs(scan.mount.x) < 0.2
+    memory.carry(Pose2D(0.8, 0.0, 0.0))
+    memory.store((scan,), 0.0)              # the two farthest now out of range: the new one and the nearest stay
+    assert len(memory) == 2
+    # Two scans of one layout in one call beyond a capacity of one: both kept (they are equally new).
+    single = SeenFree(max_range=3.0, capacity=1, step=(0.0, 0.0))
+    single.store((scan,), 0.0)
+    single.store((scan, scan.replace(mount=Pose2D(0.1, 0.0, math.pi))), 0.0)
+    (poses, _), = single.kept()
+    np.testing.assert_allclose(poses[:, 0], [scan.mount.x, 0.1])
+    certified = single.certified(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 1.0]), 0.01)
+    assert certified.tolist() == [True, True]   # seen ahead by the first, behind by the second
+
+
 @pytest.mark.parametrize("turn", [0.05, -0.05])
 def test_a_turn_error_long_ago_counts_with_the_path_driven_since(turn):
     # One scan kept, a wall beside the path; the odometry errs by a turn about the base in the first period only
