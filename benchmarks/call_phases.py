@@ -224,7 +224,7 @@ def phase_table(rows: Sequence[dict[str, Any]]) -> str:
                          + [f"{row['phases_us'][name]:.0f} ({100 * row['phases_us'][name] / mean:.0f}%)"
                             if name in row["phases_us"] else "–" for name in names]
                          + [f"{100 * row['compiled_share']:.0f}%"])
-        tables.append(f"{filter_name}:\n" + markdown_table(
+        tables.append(f"{filter_name}:\n\n" + markdown_table(
             ["robot", "scene", "dt [s]", "CPU median µs, untimed", "timed", "mean µs", *names, "compiled"],
             table))
     return "\n\n".join(tables)
