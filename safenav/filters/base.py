@@ -204,6 +204,11 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 _NO_POINTS = _read_only(np.empty((0, 2)))
 
 
+def _finite(pair: np.ndarray) -> bool:
+    """Whether both values of a ``(2,)`` command or velocity are finite (without numpy's per-call overhead)."""
+    return math.isfinite(pair[0]) and math.isfinite(pair[1])
+
+
 def _frozen(array: Any, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """A read-only float copy of ``array`` (arrays already read-only float are kept)."""
     if isinstance(array, np.ndarray) and not array.flags.writeable and array.dtype == np.float64:
@@ -275,7 +280,9 @@ class FilterResult:
         object.__setattr__(self, "u", u_nom if same else _frozen(self.u, (2,)))
         if self.constraint_points is not _NO_POINTS:
             object.__setattr__(self, "constraint_points", _frozen(self.constraint_points, (-1, 2)))
-        object.__setattr__(self, "active", tuple(map(int, self.active)))
+        active = self.active
+        object.__setattr__(self, "active", tuple(active.tolist()) if isinstance(active, np.ndarray)
+                           and active.dtype.kind in "iu" else tuple(map(int, active)))
         if self.plan is not None:
             object.__setattr__(self, "plan", _frozen(self.plan))
         if self.reason is not None and not self.message:
@@ -730,7 +737,7 @@ class SafetyFilter(abc.ABC):
             if self.seen_free is not None and len(self.seen_free):
                 self.seen_free.carry(*motion)
         self._last_pose = odometry
-        self._last_velocity = None if velocity is None or not np.all(np.isfinite(velocity)) else velocity.copy()
+        self._last_velocity = None if velocity is None or not _finite(velocity) else velocity.copy()
 
     def _motion(self, elapsed: float, velocity: np.ndarray | None, odometry: Pose2D | None
                 ) -> tuple[Pose2D, tuple[float, float]]:
@@ -739,7 +746,7 @@ class SafetyFilter(abc.ABC):
         command (an instant base)."""
         if odometry is not None and self._last_pose is not None:
             return self._last_pose.inverse().compose(odometry), (0.0, 0.0)
-        if self._last_velocity is not None and velocity is not None and np.all(np.isfinite(velocity)):
+        if self._last_velocity is not None and velocity is not None and _finite(velocity):
             return dead_reckoning(self._last_velocity, velocity, elapsed)
         return unicycle_step(Pose2D(), float(self._last_command[0]), float(self._last_command[1]), elapsed), (0.0, 0.0)
 
@@ -851,7 +858,7 @@ class SafetyFilter(abc.ABC):
     def _period_since(self, elapsed: float | None, velocity: np.ndarray | None) -> Period:
         """The period since the previous call: its length [s] (``dt`` when the time is not given), the command
         returned then, and the velocities measured then and now."""
-        end = None if velocity is None or not np.all(np.isfinite(velocity)) else np.array(velocity, dtype=float)
+        end = None if velocity is None or not _finite(velocity) else np.array(velocity, dtype=float)
         return Period(elapsed if elapsed is not None else self.dt, self._last_command.copy(), self._last_velocity, end)
 
     def _compensated(self, scans: tuple[LaserScan, ...], velocity: np.ndarray | None,

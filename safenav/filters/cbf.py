@@ -1091,7 +1091,7 @@ class CBFSafetyFilter(SafetyFilter):
     def _binding(self, u: np.ndarray, u_nom: np.ndarray, rows: families.Rows, residual: np.ndarray,
                  points: np.ndarray, problem: _Problem) -> Reason | None:
         """The constraint that bound ``u`` (``None`` when ``u`` is ``u_nom``)."""
-        if np.array_equal(u, u_nom):
+        if u[0] == u_nom[0] and u[1] == u_nom[1]:
             return None
         active = np.flatnonzero(residual >= -1e-6)
         if active.size:
@@ -1100,16 +1100,19 @@ class CBFSafetyFilter(SafetyFilter):
                 - rows.h[active]
             index = int(active[int(np.argmax(nominal_residual))])
             family = self._family(rows, index)
-            text = {"barrier": "keeps the barrier condition", "braking": "keeps the speed it can brake from",
-                    "sweep": "caps the speed along a heading the base may still turn to",
-                    "gap": "does not move towards space behind invalid beams",
-                    "blind": _blind_text(problem.blind_speed)}[family]
+            text = _blind_text(problem.blind_speed) if family == "blind" else _ROW_TEXT[family]
             return Reason(family, text, _point(points, int(rows.point[index])))
         robot = self.robot
         if np.any(u_nom < robot.lower) or np.any(u_nom > robot.upper):
             return Reason("limits", f"clipped to the velocity limits {robot.lower.tolist()}..{robot.upper.tolist()}")
         return Reason("acceleration", f"not reachable within one period from the velocity "
                                       f"{problem.velocity.tolist() if problem.velocity is not None else None}")
+
+
+_ROW_TEXT = {"barrier": "keeps the barrier condition", "braking": "keeps the speed it can brake from",
+             "sweep": "caps the speed along a heading the base may still turn to",
+             "gap": "does not move towards space behind invalid beams"}
+"""What a binding row of each family (but ``blind``, :func:`_blind_text`) does, for the reason."""
 
 
 def _blind_text(speed: float) -> str:
