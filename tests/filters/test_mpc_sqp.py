@@ -4,7 +4,6 @@ plain SQP ends (tests/filters/test_mpc_replay.py checks both against casadi's sq
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -160,52 +159,3 @@ def test_the_compiled_sqp_plans_the_crowded_problems_as_numpy_does():
     for fast, reference in zip(compiled, [safety.backend.solve(nlp) for nlp in problems], strict=True):
         assert fast.status == reference.status == "converged"
         np.testing.assert_allclose(fast.knots, reference.knots, rtol=0.0, atol=1e-9)
-
-
-FAST_ROBOT_EPISODE = (
-    '{"robot":{"name":"short_sighted","radius":0.2,"v_max":2.0,"v_min":-0.5,"omega_max":2.0,"a_max":0.6,"'
-    'alpha_max":3.0,"lidar":{"n_beams":360,"angle_min":-3.141592653589793,"angle_max":3.141592653589793,"'
-    'range_min":0.1,"range_max":1.5,"mount":[0.0,0.0,0.0],"scan_time":0.1,"noise_std":0.0,"height":0.2,"f'
-    'rame_id":"laser","no_return":null,"cloud":null},"footprint":null,"height":0.2,"source":"safenav fals'
-    'ifier robot: the fast, slow-braking base with a lidar that sees 1.5 m","extra_lidars":[]},"filter":"'
-    'mpc","base":"lag","dt":0.02,"give_velocity":true,"odometry_frame":[],"latency":0.0,"circles":[],"seg'
-    'ments":[[1.6042472958810317,3.853363009044834,-3.452370449764901,-2.3458802491616586],[-3.4523704497'
-    '64901,-2.3458802491616586,-3.4911157201286915,-2.3142763882513715],[-3.4911157201286915,-2.314276388'
-    '2513715,1.5655020255172412,3.884966869955121],[1.5655020255172412,3.884966869955121,1.60424729588103'
-    '17,3.853363009044834]],"nominal":"aim_nearest","params":[1.3394860030129982,3.430453709469786],"velo'
-    'city":[0.8545117792582313,0.5989311749209103],"duration":4.0,"noise":0.0,"seed":4369,"settings":{"ti'
-    'me_constant":0.02},"period":null,"escape":false,"passage":[0.3808420704632771,0.9440416962913846]}'
-)
-"""The MPC falsifier's worst episode of the twenty-eighth session (``benchmarks.falsify --seed 135``, the robots of
-``benchmarks/robots``): short_sighted (2 m/s, 0.6 m/s^2, a lidar that sees 1.5 m) among walls at dt 0.02, a lagging
-base."""
-
-
-def test_the_sqp_stops_cycling_between_iterates_on_a_fast_robot_in_clutter(monkeypatch):
-    # With full steps the SQP cycles between iterates in a dozen of this episode's NLP solves (the same step back
-    # and forth until the iteration limit); taking a fraction of a step that turns back along the last one ends
-    # the cycles: the same episode keeps the margin with almost every solve converged.
-    from benchmarks import falsify
-
-    episode = dataclasses.replace(falsify.Episode.from_json("".join(FAST_ROBOT_EPISODE)),
-                                  settings={"time_constant": 0.02, "budget": math.inf})
-    statuses: list[str] = []
-    solve = sqp.DirectSQP.solve
-
-    def recorded(self, nlp, *args, **kwargs):
-        outcome = solve(self, nlp, *args, **kwargs)
-        statuses.append(outcome.status)
-        return outcome
-
-    monkeypatch.setattr(sqp.DirectSQP, "solve", recorded)
-    runs = {}
-    for name, cosine in (("full steps", 2.0), ("turning back damped", sqp.REVERSAL_COSINE)):
-        monkeypatch.setattr(sqp, "REVERSAL_COSINE", cosine)     # 2: no step ever counts as turning back
-        statuses.clear()
-        outcome, _ = falsify.run(episode)
-        runs[name] = (statuses.count("max_iter"), len(statuses), outcome)
-    cycling, solves, _ = runs["full steps"]
-    left, damped_solves, outcome = runs["turning back damped"]
-    assert solves > 150 and cycling >= 10, runs
-    assert left <= 2 and damped_solves > 150, runs
-    assert not outcome.contact and outcome.min_clearance >= outcome.margin, outcome

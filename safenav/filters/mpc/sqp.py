@@ -29,10 +29,8 @@ constant Hessian, the clearance rows linearised) is assembled in numpy without l
 :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by default, the CBF's back-end
 interface), with full steps from the warm start, until the step is below :data:`STEP_TOLERANCE`.
 Where the steps contract slowly along one direction (the Hessian leaves the rows' curvature out)
-they are extrapolated to the end of their geometric series (:data:`EXTRAPOLATION_WINDOW`); where a step
-turns back along the previous one (:data:`REVERSAL_COSINE`: full steps cycling between iterates, as on the
-fast robots of ``benchmarks/robots`` in clutter) the next linearisation point goes only a fraction of the
-way. The fixed point, and the test of convergence on a QP's own step, are unchanged. Only the clearance rows that
+they are extrapolated to the end of their geometric series (:data:`EXTRAPOLATION_WINDOW`); the fixed
+point, and the test of convergence on a QP's own step, are unchanged. Only the clearance rows that
 can bind are passed to the QP; any other row its answer violates is added and the QP solved again,
 so each step is the step of the QP with every row. With a slack per point (``slack_groups``) the QP
 has the slacks of the points with a row in it (any other is 0 at the optimum), and of each point's
@@ -62,8 +60,8 @@ from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
 from safenav.filters.qp import QPBackend, QPData
 
-__all__ = ["EXTRAPOLATION_WINDOW", "REVERSAL_COSINE", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost",
-           "PlanNLP", "PlanSolver", "knot_changes"]
+__all__ = ["EXTRAPOLATION_WINDOW", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver",
+           "knot_changes"]
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
 STEP_TOLERANCE = 1e-5
@@ -86,13 +84,6 @@ MAX_ROW_ROUNDS = 6
 EXTRAPOLATION_WINDOW = 1e-3
 EXTRAPOLATION_RATIOS = (0.1, 0.95)
 EXTRAPOLATION_COSINE = 0.99
-#: A step whose cosine with the previous one is below -REVERSAL_COSINE and whose size is within a factor of
-#: REVERSAL_RATIO of it turns back along it: the SQP is cycling between iterates (full steps, a Hessian without the
-#: clearance rows' curvature), and the next linearisation point goes only a fraction of the way, halved at each
-#: such step down to MIN_FRACTION and doubled back after each step that neither turns back nor grows.
-REVERSAL_COSINE = 0.5
-REVERSAL_RATIO = 4.0
-MIN_FRACTION = 1.0 / 16.0
 
 
 @dataclass(frozen=True)
@@ -414,7 +405,6 @@ class DirectSQP:
         iterations = 0
         previous_step: np.ndarray | None = None
         previous_change = math.inf
-        fraction = 1.0          # of the QP's step the next linearisation point goes (below 1 while steps reverse)
         for iterations in range(1, self.max_iter + 1):
             if steps.late():
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True,
@@ -520,27 +510,13 @@ class DirectSQP:
                 working |= violated
             step = answer[:2 * n] - knots
             change = float(np.max(np.abs(step)))
-            start_knots, knots = knots, answer[:2 * n].copy()
+            knots = answer[:2 * n].copy()
             buffer_slack, slack = float(answer[2 * n]), float(np.max(answer[2 * n + 1:]))
             point_slacks = answer[slack_column].copy() if n_groups > 1 else None
             if change <= STEP_TOLERANCE:
                 status = "converged"
                 break
-            if previous_step is not None and iterations < self.max_iter:
-                # A step back along the last one: the SQP cycles between iterates (its Hessian leaves out the
-                # clearance rows' curvature). The next linearisation point goes a fraction of the way, halved at
-                # each such step and doubled back after each step that neither turns back nor grows; the iterate
-                # returned is always a QP's answer (the last iteration takes its step whole).
-                norms = float(np.linalg.norm(step) * np.linalg.norm(previous_step))
-                if (float(step @ previous_step) < -REVERSAL_COSINE * norms
-                        and 1.0 / REVERSAL_RATIO < change / previous_change < REVERSAL_RATIO):
-                    fraction = max(0.5 * fraction, MIN_FRACTION)
-                elif change < previous_change:
-                    fraction = min(2.0 * fraction, 1.0)
-                if fraction < 1.0:
-                    knots = start_knots + fraction * step
-            if (previous_step is not None and fraction == 1.0 and change < EXTRAPOLATION_WINDOW
-                    and iterations < self.max_iter):
+            if previous_step is not None and change < EXTRAPOLATION_WINDOW and iterations < self.max_iter:
                 # Contracting steps along one direction: jump to where their geometric series ends (the
                 # next QP, linearised there, makes the step that is checked for convergence; the last
                 # iterate returned is always a QP's answer).
