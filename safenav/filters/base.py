@@ -205,7 +205,7 @@ _NO_POINTS = _read_only(np.empty((0, 2)))
 
 
 def _finite(pair: np.ndarray) -> bool:
-    """Whether both values of a ``(2,)`` command or velocity are finite (without numpy's per-call overhead)."""
+    """Whether both values of a command or velocity pair are finite (without numpy's per-call overhead)."""
     return math.isfinite(pair[0]) and math.isfinite(pair[1])
 
 
@@ -709,7 +709,7 @@ class SafetyFilter(abc.ABC):
         if velocity is None or previous is None or not self._called:
             return ""
         measured = (float(velocity[0]), float(velocity[1]))
-        if not (math.isfinite(measured[0]) and math.isfinite(measured[1])):
+        if not _finite(measured):
             return ""
         command = (float(self._last_command[0]), float(self._last_command[1]))
         left = math.exp(-elapsed / self.time_constant) if self.time_constant > 0.0 else 0.0
@@ -812,13 +812,13 @@ class SafetyFilter(abc.ABC):
                   scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:
         """The checks every filter needs around :meth:`_filter` (see :meth:`filter`)."""
         warnings = (clock_note,) if clock_note else ()
-        if current is not None and not np.all(np.isfinite(current)):
+        if current is not None and not _finite(current):
             return self._brake(nominal, None, FilterStatus.BAD_INPUT, "bad_input",
                                f"velocity is not finite: {current.tolist()}", warnings=warnings)
         ages, stale = self._ages(scans, scan_age, now)
         if stale:
             return self._brake(nominal, current, FilterStatus.STALE, "stale", stale, warnings=warnings)
-        if not (math.isfinite(nominal[0]) and math.isfinite(nominal[1])):
+        if not _finite(nominal):
             return self._brake(nominal, current, FilterStatus.BAD_INPUT, "bad_input",
                                f"u_nom is not finite: {nominal.tolist()}", warnings=warnings)
         if all(scan.n_informative == 0 for scan in scans):
@@ -835,7 +835,7 @@ class SafetyFilter(abc.ABC):
         result = self._filter(nominal, view, current, held)
         self._remember(view, error)
         result = self._told_horizon(result, view)
-        if not (math.isfinite(result.u[0]) and math.isfinite(result.u[1])):
+        if not _finite(result.u):
             return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
                                f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
         extras: dict[str, Any] = dict(period=held)
@@ -929,7 +929,7 @@ class SafetyFilter(abc.ABC):
         """
         scans = self._match(as_scans(scan))
         current = None if velocity is None else as_command(velocity, "velocity")
-        if current is not None and not np.all(np.isfinite(current)):
+        if current is not None and not _finite(current):
             return scans
         ages, stale = self._ages(scans, scan_age, now)
         pending = None
