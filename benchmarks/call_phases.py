@@ -49,13 +49,11 @@ if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
 from benchmarks.common import markdown_table, write_json
-from benchmarks.filter_latency import reach_scenes, wall_episodes
+from benchmarks.filter_latency import reach_case, reach_scenes, wall_episodes
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, SafetyFilter, kernels, qp
 from safenav.filters.mpc import nlp, sqp
-from safenav.geometry import Pose2D
 from safenav.robot import PRESET_NAMES, RobotSpec, preset
 from safenav.scan import LaserScan
-from safenav.synthetic import synthetic_scan
 
 COMPILED = ("QP solver (DAQP)", "model (casadi)", "kernels (numba)")
 """The phases that run in compiled code."""
@@ -150,8 +148,7 @@ Runner = Callable[[Callable[[], SafetyFilter], OnCall], None]
 def fixed_scene(robot: RobotSpec, scene: str, calls: int) -> Runner:
     """``calls`` calls of one filter on the fixed scan of a scene of ``filter_latency --reach`` (the nominal and
     the velocity 30 % of the top speed, straight ahead)."""
-    scan = synthetic_scan(robot, reach_scenes(robot)[scene], Pose2D(), noise_std=0.0)
-    command = np.array([0.3 * robot.v_max, 0.0])
+    scan, command = reach_case(robot, scene)
 
     def run(make: Callable[[], SafetyFilter], on_call: OnCall) -> None:
         safety = make()

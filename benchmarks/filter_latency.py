@@ -252,15 +252,21 @@ node's scans always arrive late, and the filter first moves them into the curren
 (``SafetyFilter.latent_motion``)."""
 
 
+def reach_case(robot: RobotSpec, scene: str) -> tuple[LaserScan, np.ndarray]:
+    """The fixed scan of one scene of :func:`reach_scenes` (no range noise) and the nominal (also the velocity):
+    30 % of the top speed, straight ahead."""
+    return (synthetic_scan(robot, reach_scenes(robot)[scene], Pose2D(), noise_std=0.0),
+            np.array([0.3 * robot.v_max, 0.0]))
+
+
 def reach_latency(robots: Sequence[str], calls: int) -> list[dict[str, Any]]:
     """The CBF's time per call (velocity given) on one fixed scan of each scene of :func:`reach_scenes`, fresh and
     :data:`LATE_SCAN` old."""
     rows = []
     for name in robots:
         robot = preset(name)
-        command = np.array([0.3 * robot.v_max, 0.0])
-        for scene_name, scene in reach_scenes(robot).items():
-            scan = synthetic_scan(robot, scene, Pose2D(), noise_std=0.0)
+        for scene_name in reach_scenes(robot):
+            scan, command = reach_case(robot, scene_name)
             timed = {}
             for age in (0.0, LATE_SCAN):
                 safety = CBFSafetyFilter(robot, DT, budget=math.inf)     # its whole time, never cut short
