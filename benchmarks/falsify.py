@@ -29,7 +29,9 @@ given too (``pose=``, as the ROS nodes pass it), in a frame of its own far from 
 turned so that the heading crosses the wrap at ``+-pi`` as the robot turns. With ``--latencies``
 the cells are searched again with every scan that old: taken where the robot was that long
 before the call, stamped then, and the filter told the time (``now``), as a ROS driver's scans
-arrive.
+arrive. The CBF and the MPC run without their compute budgets, so that the same seed gives the
+same report on any machine under any load; ``--real-time`` keeps them (a call preempted past its
+budget then brakes or follows its last plan, as on a robot, and the report depends on the load).
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ from benchmarks.common import SHIPPED, opt_in_settings, run_cli, where
 from safenav._checks import argument_type, number
 from safenav._optional import require
 from safenav.errors import InvalidConfig
-from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, sweep_settings
+from safenav.experiments.runner import JobRunner, Progress, add_sweep_options, reproducible_settings, sweep_settings
 from safenav.filters import filter_settings, make_filter, unescaped
 from safenav.filters.body import BodyModel
 from safenav.filters.mpc.config import REFERENCES
@@ -850,7 +852,7 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
            min_obstacle_width: float | None = None, narrow_body: str | None = None,
-           odometry: bool = False, latencies: Sequence[float] = ()) -> list[dict[str, Any]]:
+           odometry: bool = False, latencies: Sequence[float] = (), real_time: bool = False) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base; with ``odometry`` each cell given the velocity again with the odometry pose
     too, after all the others; then every cell again with each of ``latencies`` [s] as the scans' age); the
@@ -865,8 +867,9 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
             for body, reference in itertools.product(bodies, references):
                 if body != "disk" and not _has_body(filter_name, robot, body):
                     continue    # a round robot has no footprint to cover, or the filter has no such model
-                settings = ({} if body == "disk" else {"body": body}) | opt_in_settings(
-                    filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead)
+                settings = (({} if real_time else reproducible_settings(filter_name))
+                            | ({} if body == "disk" else {"body": body})
+                            | opt_in_settings(filter_name, mpc_reference=reference, mpc_lookahead=mpc_lookahead))
                 if min_obstacle_width is not None and unescaped(filter_name) in ("cbf", "mpc"):
                     settings["min_obstacle_width"] = min_obstacle_width
                 takes = unescaped(filter_name) == "cbf" or (unescaped(filter_name) == "mpc" and narrow_body == "cover")
@@ -974,6 +977,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--latencies", nargs="+", type=argument_type(number, low=0.0, high=1.0), default=[],
                         metavar="S", help="also search every cell with every scan this old [s] (taken where the "
                                           "robot was then, stamped then; the filter is told the time)")
+    parser.add_argument("--real-time", action="store_true",
+                        help="keep the filters' compute budgets: a call preempted past its budget brakes or follows "
+                             "its last plan, as on a robot, and the outcomes then depend on the machine's load")
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
@@ -998,7 +1004,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
                    args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
-                   args.narrow_body, args.odometry, args.latencies)
+                   args.narrow_body, args.odometry, args.latencies, args.real_time)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

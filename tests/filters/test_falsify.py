@@ -21,6 +21,7 @@ from benchmarks.falsify import (
     search,
 )
 from safenav import preset
+from safenav.experiments.runner import reproducible_settings
 from safenav.filters import make_filter
 from safenav.robot import RobotSpec
 
@@ -54,7 +55,8 @@ def test_short_adversarial_search_finds_no_violation(cell):
 
 def test_an_episode_replays_from_its_json_line_exactly():
     episode = decode([0.3] * 18 + [0.8, 0.3], robot="m2wr", filter_name="cbf", base="lag", dt=0.05,
-                     give_velocity=True, geometry="poles", nominal="bang_bang", margin=0.04)
+                     give_velocity=True, geometry="poles", nominal="bang_bang", margin=0.04,
+                     settings=reproducible_settings("cbf"))   # two runs compared: no compute budget
     assert episode.passage == pytest.approx((0.05 + 1.95 * 0.3, (0.8 - 0.25) / 0.75))
     again = Episode.from_json(episode.to_json())
     assert again == episode
@@ -116,7 +118,8 @@ def test_searches_that_take_turns_find_what_each_finds_alone():
 
     cells = [dict(robot="rosbot", filter_name="cbf", base="ramp", dt=0.05, give_velocity=True),
              dict(robot="m2wr", filter_name="cbf", base="instant", dt=0.1, give_velocity=False)]
-    cells = [dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS) for cell in cells]
+    cells = [dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS, settings=reproducible_settings("cbf"))
+             for cell in cells]     # no compute budget: a call preempted past it would brake in one run only
     alone = [search(cell, episodes=12, seed=seed, margin=0.04) for seed, cell in enumerate(cells)]
     in_turns = search_cells([CellSearch(cell, episodes=12, seed=seed, margin=0.04) for seed, cell in enumerate(cells)])
     assert [[f.episode for f in found] for found in in_turns] == [[f.episode for f in found] for found in alone]
@@ -200,3 +203,16 @@ def test_the_poles_are_as_thin_as_the_filter_claims_to_see_in_time_and_stand_as_
                    min_obstacle_width=0.02)
     assert [cell["settings"].get("min_obstacle_width") for cell in cells] == [0.02, 0.02, None]
     assert _cell_key(cells[0]) == "rosbot/cbf/width-0.02"
+
+
+def test_the_cells_run_without_compute_budgets_unless_asked_for_real_time():
+    """The same seed gives the same report under any load: the CBF and MPC cells (escape or not) run without
+    their compute budgets; with ``--real-time`` they keep them (the default, half the period), and the zones,
+    which have none, get nothing either way. A cell's name does not change."""
+    filters, reproducible = ["cbf", "mpc+escape", "zones"], [math.inf, math.inf, None]
+    for real_time, budgets in ((False, reproducible), (True, [None] * 3)):
+        cells = _cells(["rosbot"], filters, ["ramp"], [0.05], ["poles"], ["arc"], real_time=real_time)
+        assert [cell["settings"].get("budget") for cell in cells] == budgets
+        assert [_cell_key(cell) for cell in cells] == ["rosbot/cbf", "rosbot/mpc+escape", "rosbot/zones"]
+        assert make_filter("cbf", preset("rosbot"), 0.05, **cells[0]["settings"]).budget == (
+            math.inf if not real_time else 0.025)
