@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from safenav import InvalidConfig, LidarSpec, Pose2D, UnknownName, preset, unicycle_step
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCConfig, MPCSafetyFilter
 from safenav.filters.mpc import NLPOutcome, available_mpc_solvers
+from safenav.scan import LaserScan
 from safenav.synthetic import Circle, Scene, box, synthetic_scan, wall
 
 DT = 0.05
@@ -276,6 +277,48 @@ def test_moving_too_fast_to_stop_relaxes_with_slack_and_brakes_hard():
     assert result.u[0] == pytest.approx(1.0 - robot.a_max * DT)
     problem = filt.build_problem((1.0, 0.0), scan, (1.0, 0.0))
     assert filt.check_plan(problem, result.plan[1:, 3:]).clearance == pytest.approx(-result.slack, abs=1e-9)
+
+
+def test_of_the_plans_at_hand_the_one_that_needs_the_least_slack_is_taken():
+    """A pole revealed where the last plan (shifted by the period since) stops 1 cm too near it, and a solver
+    whose answers drive on through it (any local optimum of the NLP can be that bad: with the SQP's steps
+    damped, the fast slow-braking robot of the falsifier took a plan relaxed by 21 cm over its last plan
+    relaxed by 1.5 mm, and kept it for 15 periods): the filter takes the shifted plan, the verified plan that
+    needs the least slack, and says by how much it is relaxed. Before, the shifted plan was taken only when
+    it needed no slack at all."""
+    robot = preset("rosbot")
+    filt, velocity, nominal = mpc(robot), (0.5, 0.0), (0.5, 0.0)
+    first = filt.filter(nominal, synthetic_scan(robot, Scene.of()), velocity=velocity)
+    assert first.status is FilterStatus.OK and first.solver == ""     # the fast path: held, then braking
+    shifted = np.vstack((first.plan[2:, 3:], np.zeros((1, 2))))
+    here = Pose2D(*first.plan[1, :3])
+    stop = first.plan[-1, :2]
+
+    def call_two(gap: float) -> tuple[LaserScan, float]:
+        """The scan one period on with a pole ``gap`` [m] beyond where the last plan stops, and how much
+        slack the shifted plan needs against it [m] (negative: it needs some)."""
+        scan = synthetic_scan(robot, Scene.of(Circle((float(stop[0]) + gap, float(stop[1])), 0.05)), here)
+        return scan, filt.check_plan(filt.build_problem(nominal, scan, velocity), shifted).clearance
+
+    probe = 0.6
+    gap = probe - call_two(probe)[1] - 0.01
+    scan, needed = call_two(gap)
+    assert -0.02 < needed < -0.002      # the shifted plan needs about 1 cm of slack
+
+    def drives_on(nlp, *args, **kwargs):
+        """Speeds up for four periods, then brakes at the limit: into the pole, with a slack that covers it."""
+        speed, commands = float(nlp.velocity[0]), np.zeros_like(nlp.lower)
+        for period in range(commands.shape[0]):
+            speed = max(0.0, speed + (1.0 if period < 4 else -1.0) * float(nlp.step[0]))
+            commands[period, 0] = min(speed, float(nlp.upper[period, 0]))
+        slacks = None if nlp.slack_groups is None else np.ones(nlp.points.shape[0])
+        return NLPOutcome(nlp.layout.sample(commands), 0.0, 1.0, "converged", 1, 0.0, point_slacks=slacks)
+
+    filt.backend.solve = drives_on
+    result = filt.filter(nominal, scan, velocity=velocity)
+    assert result.status is FilterStatus.SLACK and "relaxed by" in result.message
+    assert result.slack == pytest.approx(-needed, abs=1e-6)
+    np.testing.assert_allclose(result.u, shifted[0], atol=1e-9)
 
 
 # ------------------------------------------------------------------ properties on random scans

@@ -81,6 +81,16 @@ class _Solved(NamedTuple):
     held: bool = False
 
 
+def _least_slack(solved: _Solved, others: list[tuple[np.ndarray, PlanCheck]]) -> _Solved:
+    """``solved``, or the plan of ``others`` that needs the least slack when it needs less than ``solved``
+    (:meth:`MPCSafetyFilter._plans_at_hand`): slack lets the plan come nearer a point than its radius, so of the
+    verified plans at hand the filter takes the one that comes least far inside any point's."""
+    best = max(others, key=lambda other: other[1].clearance, default=None)
+    if solved.check is None or best is None or best[1].clearance <= solved.check.clearance:
+        return solved
+    return solved._replace(commands=best[0], check=best[1])
+
+
 class MPCSafetyFilter(SafetyFilter):
     """Minimal change of the command such that a plan that ends stopped keeps the body clear of every lidar point.
 
@@ -774,10 +784,12 @@ class MPCSafetyFilter(SafetyFilter):
                                   details)
         if outcome.commands is None or outcome.check is None:
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
-        if outcome.check.clearance < -VERIFY_TOLERANCE and shifted is not None:
-            outcome = self._keep_shifted(problem, shifted, outcome)
+        others: list[tuple[np.ndarray, PlanCheck]] = []
+        if outcome.check.clearance < -VERIFY_TOLERANCE:
+            others = self._plans_at_hand(problem, shifted, hold)
+            outcome = _least_slack(outcome, others)
         if outcome.check.clearance < -SPLIT_SLACK and not split:
-            outcome = self._split_slack(problem, outcome, candidate)
+            outcome = _least_slack(self._split_slack(problem, outcome, candidate), others)
         outcome = self._hold(problem, outcome)
         self._commands = outcome.commands
         self._splitting = outcome.check.clearance < -SPLIT_SLACK
@@ -814,18 +826,20 @@ class MPCSafetyFilter(SafetyFilter):
             return solved
         return solved._replace(commands=held, check=check, held=True)
 
-    def _keep_shifted(self, problem: MPCProblem, shifted: np.ndarray, solved: _Solved) -> _Solved:
-        """The last plan shifted by one call period instead of an answer that needs slack, when it needs none.
+    def _plans_at_hand(self, problem: MPCProblem, shifted: np.ndarray | None, hold: int
+                       ) -> list[tuple[np.ndarray, PlanCheck]]:
+        """The plans besides the solver's answer that pass the checks of ``problem`` (the velocity and acceleration
+        bounds; any slack), with their checks: the last plan shifted by the call's period (its first command moved
+        into what the base can reach now), and braking at the acceleration limits from now.
 
-        With move blocking the shifted plan need not be one the optimiser can represent, so an
-        answer with slack does not prove that no plan without slack exists: the shifted plan is
-        checked like any answer (its first command moved into what the base can reach now).
+        The NLP is not convex: its solver can end in a local optimum that needs more slack than these (with move
+        blocking the shifted plan need not even be one it can represent), so an answer with slack proves
+        neither that no plan needs less nor that none needs none.
         """
-        commands = self._repair(shifted, problem)
-        check = self.check_plan(problem, commands)
-        if check.limits <= BOUND_TOLERANCE and check.clearance >= -VERIFY_TOLERANCE:
-            return solved._replace(commands=commands, check=check)
-        return solved
+        plans = [] if shifted is None else [self._repair(shifted, problem)]
+        plans.append(self._braking(np.clip(0.0, problem.lower[0], problem.upper[0]), hold))
+        checked = [(commands, self.check_plan(problem, commands)) for commands in plans]
+        return [(commands, check) for commands, check in checked if check.limits <= BOUND_TOLERANCE]
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
                 used: np.ndarray, solve_time: float, solver: str, held: bool = False) -> FilterResult:
