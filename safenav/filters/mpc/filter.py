@@ -79,16 +79,20 @@ class _Solved(NamedTuple):
     message: str
     abandoned: bool = False
     held: bool = False
+    taken: str = ""
+    """Which plan at hand was taken instead of the solver's answer, and why (``""``: the answer)."""
 
 
-def _least_slack(solved: _Solved, others: list[tuple[np.ndarray, PlanCheck]]) -> _Solved:
+def _least_slack(solved: _Solved, others: list[tuple[str, np.ndarray, PlanCheck]]) -> _Solved:
     """``solved``, or the plan of ``others`` that needs the least slack when it needs less than ``solved``
     (:meth:`MPCSafetyFilter._plans_at_hand`): slack lets the plan come nearer a point than its radius, so of the
     verified plans at hand the filter takes the one that comes least far inside any point's."""
-    best = max(others, key=lambda other: other[1].clearance, default=None)
-    if solved.check is None or best is None or best[1].clearance <= solved.check.clearance:
+    best = max(others, key=lambda other: other[2].clearance, default=None)
+    if solved.check is None or best is None or best[2].clearance <= solved.check.clearance:
         return solved
-    return solved._replace(commands=best[0], check=best[1])
+    needed = -solved.check.clearance
+    return solved._replace(commands=best[1], check=best[2],
+                           taken=f"{best[0]} taken: the solver's answer needed {needed:.4f} m of slack")
 
 
 class MPCSafetyFilter(SafetyFilter):
@@ -784,7 +788,7 @@ class MPCSafetyFilter(SafetyFilter):
                                   details)
         if outcome.commands is None or outcome.check is None:
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
-        others: list[tuple[np.ndarray, PlanCheck]] = []
+        others: list[tuple[str, np.ndarray, PlanCheck]] = []
         if outcome.check.clearance < -VERIFY_TOLERANCE:
             others = self._plans_at_hand(problem, shifted, hold)
             outcome = _least_slack(outcome, others)
@@ -794,7 +798,8 @@ class MPCSafetyFilter(SafetyFilter):
         self._commands = outcome.commands
         self._splitting = outcome.check.clearance < -SPLIT_SLACK
         return self._result(problem, outcome.commands, outcome.check, details, used=outcome.used,
-                            solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held)
+                            solve_time=outcome.solve_time, solver=self.backend.name, held=outcome.held,
+                            taken=outcome.taken)
 
     def _hold(self, problem: MPCProblem, solved: _Solved) -> _Solved:
         """No linear command that the plan itself reverses in the next period, when the base can stop now.
@@ -827,23 +832,25 @@ class MPCSafetyFilter(SafetyFilter):
         return solved._replace(commands=held, check=check, held=True)
 
     def _plans_at_hand(self, problem: MPCProblem, shifted: np.ndarray | None, hold: int
-                       ) -> list[tuple[np.ndarray, PlanCheck]]:
+                       ) -> list[tuple[str, np.ndarray, PlanCheck]]:
         """The plans besides the solver's answer that pass the checks of ``problem`` (the velocity and acceleration
-        bounds; any slack), with their checks: the last plan shifted by the call's period (its first command moved
-        into what the base can reach now), and braking at the acceleration limits from now.
+        bounds; any slack), named, with their checks: the last plan shifted by the call's period (its first command
+        moved into what the base can reach now), and braking at the acceleration limits from now.
 
         The NLP is not convex: its solver can end in a local optimum that needs more slack than these (with move
         blocking the shifted plan need not even be one it can represent), so an answer with slack proves
         neither that no plan needs less nor that none needs none.
         """
-        plans = [] if shifted is None else [self._repair(shifted, problem)]
-        plans.append(self._braking(np.clip(0.0, problem.lower[0], problem.upper[0]), hold))
-        checked = [(commands, self.check_plan(problem, commands)) for commands in plans]
-        return [(commands, check) for commands, check in checked if check.limits <= BOUND_TOLERANCE]
+        plans = [] if shifted is None else [("the last plan", self._repair(shifted, problem))]
+        plans.append(("braking at the limits", self._braking(np.clip(0.0, problem.lower[0], problem.upper[0]), hold)))
+        checked = [(name, commands, self.check_plan(problem, commands)) for name, commands in plans]
+        return [(name, commands, check) for name, commands, check in checked if check.limits <= BOUND_TOLERANCE]
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
-                used: np.ndarray, solve_time: float, solver: str, held: bool = False) -> FilterResult:
-        """The result for a verified plan: status from its slack and the margin, and why it differs from u_nom."""
+                used: np.ndarray, solve_time: float, solver: str, held: bool = False, taken: str = ""
+                ) -> FilterResult:
+        """The result for a verified plan: status from its slack and the margin, and why it differs from u_nom
+        (``taken``: which plan at hand was taken instead of the solver's answer, and why)."""
         status, reason = FilterStatus.OK, None
         slack = max(0.0, -check.clearance)
         margins = (check.distances - problem.radii).min(axis=1) if check.distances.size else np.empty(0)
@@ -853,16 +860,19 @@ class MPCSafetyFilter(SafetyFilter):
             status = FilterStatus.SLACK
             if problem.min_barrier < 0.0:
                 reason = Reason("plan", f"already inside the margin (barrier {problem.min_barrier:.3f} m); plan "
-                                        f"relaxed by {slack:.4f} m, moving away", point)
+                                        f"relaxed by {slack:.4f} m, moving away" + (f" ({taken})" if taken else ""),
+                                point)
             else:
                 reason = Reason("plan", f"cannot brake in time under the acceleration limits; plan relaxed by "
-                                        f"{slack:.4f} m", point)
+                                        f"{slack:.4f} m" + (f" ({taken})" if taken else ""), point)
         elif problem.min_barrier < 0.0:
             status = FilterStatus.RECOVERING
             reason = Reason("plan", f"inside the margin of the nearest obstacle (barrier {problem.min_barrier:.3f} "
                                     f"m); the plan comes no closer", point)
         elif held:
             reason = Reason("plan", "held stopped: the plan would only reverse in the next period", point)
+        elif taken:
+            reason = Reason("plan", f"{taken}, this one none", point)
         elif not np.array_equal(commands[0], problem.u_nom):
             reason = self._why(problem, commands, check, point)
         active = np.flatnonzero(margins[used] <= VERIFY_TOLERANCE + max(0.0, -check.planned))
