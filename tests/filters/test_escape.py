@@ -29,10 +29,15 @@ ROBOTS = Path(__file__).resolve().parents[2] / "benchmarks" / "robots"
 WALL = ((1.0, -1.5, 1.0, 1.5),)     # 3 m wide, 1 m ahead; the goal 3 m ahead, straight behind it
 
 
+# Every episode here runs its filter without the compute budget (reproducible_settings): a call preempted past it
+# brakes or follows its last plan, and the episode would depend on the machine's load (two CI runs failed on it,
+# 2026-11-29: an escape one step longer, a deadline's fallback among the escape's statuses). The deadline has tests
+# of its own (tests/filters/test_cbf_deadline.py, tests/filters/test_mpc_deadline.py).
 def goal_behind_the_wall(robot: str, filter_name: str, escape: bool, **settings) -> Episode:
     segments = WALL if robot != "m2wr" else ((1.2, -1.5, 1.2, 1.5),)
     return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05, segments=segments, nominal="goal",
-                   params=(3.0, 0.0), duration=40.0, escape=escape, settings=settings)
+                   params=(3.0, 0.0), duration=40.0, escape=escape,
+                   settings={**reproducible_settings(filter_name), **settings})
 
 
 def test_a_deadlock_in_front_of_a_wide_wall_is_reported_within_the_configured_time():
@@ -145,7 +150,8 @@ def door_behind_a_wall(robot: str, filter_name: str, side: int, **settings) -> E
     room = ((-1.5, 2.5, 4.0, 2.5), (-1.5, -2.5, 4.0, -2.5), (-1.5, -2.5, -1.5, 2.5), (4.0, -2.5, 4.0, 2.5))
     divider = ((1.0, -2.5, 1.0, centre - half), (1.0, centre + half, 1.0, 2.5))
     return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05, segments=divider + room,
-                   nominal="goal", params=(3.0, 0.0), duration=40.0, escape=True, settings=settings)
+                   nominal="goal", params=(3.0, 0.0), duration=40.0, escape=True,
+                   settings={**reproducible_settings(filter_name), **settings})
 
 
 def _through_the_door(log: list[dict], robot: str, side: int) -> bool:
@@ -163,7 +169,7 @@ def _through_the_door(log: list[dict], robot: str, side: int) -> bool:
 def test_with_the_escape_the_mpc_finds_the_door_beside_a_deadlock_and_drives_through_it(robot, side):
     """The door of the door scenarios is only 2.5 cm wider on each side than the body with the margin;
     before, the escape asked for 5 cm and never took it (and chose the side away from it)."""
-    outcome, log = run(door_behind_a_wall(robot, "mpc", side, budget=math.inf), record=True)
+    outcome, log = run(door_behind_a_wall(robot, "mpc", side), record=True)
     assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
     assert _through_the_door(log, robot, side) and outcome.goal_distance < 0.3
     assert any("driving through a gap" in row["escape"] for row in log)
@@ -241,7 +247,7 @@ def oblique_door(robot: str, filter_name: str) -> Episode:
     return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05,
                    segments=_rotated(divider + room, -OBLIQUE_HEADING), nominal="goal",
                    params=(c * goal[0] - s * goal[1], s * goal[0] + c * goal[1]), duration=40.0, escape=True,
-                   settings={"budget": math.inf} if filter_name == "mpc" else {})
+                   settings=reproducible_settings(filter_name))
 
 
 @pytest.mark.parametrize("filter_name", ["cbf", "mpc"])
@@ -329,7 +335,8 @@ def trap_facing_the_goal(robot: str, filter_name: str, **settings) -> Episode:
     half, mouth, back = 0.5 * (4.0 * preset(robot).radius + 0.4), 0.8, 2.0
     trap = ((mouth, half, back, half), (back, half, back, -half), (back, -half, mouth, -half))
     return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05, segments=trap, nominal="goal",
-                   params=(4.0, 0.0), duration=40.0, escape=True, settings=settings)
+                   params=(4.0, 0.0), duration=40.0, escape=True,
+                   settings={**reproducible_settings(filter_name), **settings})
 
 
 @pytest.mark.parametrize("robot", ["rosbot", "puzzlebot", "m2wr"])
@@ -340,8 +347,7 @@ def test_the_escape_does_not_hand_back_at_the_mouth_of_a_trap_the_robot_deadlock
     that place (a bug algorithm's leave condition). Before, it handed back at the mouth, the nominal drove in
     again and the robot went round that loop until the end (the dead-end scenario, ROSbot seed 0); and the
     m2wr, whose lidar does not look back, lost the arm's end as it went round it and drove off into the open."""
-    settings = {"budget": math.inf} if filter_name == "mpc" else {}
-    outcome, log = run(trap_facing_the_goal(robot, filter_name, **settings), record=True)
+    outcome, log = run(trap_facing_the_goal(robot, filter_name), record=True)
     assert not outcome.contact and outcome.min_clearance >= outcome.margin - TOLERANCE
     assert outcome.goal_distance < 0.3
     half = 0.5 * (4.0 * preset(robot).radius + 0.4)
@@ -374,10 +380,8 @@ def test_given_the_odometry_pose_the_escape_and_the_filter_do_the_same_in_any_od
     must not matter. Out of the U-shaped trap (the ROSbot's way out needs the place where it deadlocked; the m2wr
     remembers what its 180-degree lidar no longer sees) in the robot's own frame, and in frames 1 km away whose
     heading starts just short of +pi and just past -pi (its turns cross the wrap): the same commands to rounding,
-    the same escape, the goal reached without contact. (Without the compute budgets, as every comparison of two
-    runs: with them a call preempted past its budget brakes, and the machine's load decides the escape's steps.)"""
-    episode = dataclasses.replace(trap_facing_the_goal(robot, filter_name, **reproducible_settings(filter_name)),
-                                  odometry_frame=(0.0, 0.0, 0.0))
+    the same escape, the goal reached without contact."""
+    episode = dataclasses.replace(trap_facing_the_goal(robot, filter_name), odometry_frame=(0.0, 0.0, 0.0))
     reference, reference_log = run(episode, record=True)
     assert reference.goal_distance < 0.3 and reference.escape_steps > 0 and not reference.contact
     for frame in ((1000.0, -700.0, math.pi - 0.01), (-3.0, 5.0, -math.pi + 0.002)):
@@ -529,8 +533,7 @@ def test_in_a_pocket_with_something_ahead_every_way_the_escape_drives_out_instea
     ``max_time`` (15 s there). Now, after half a turn without driving, it drives the freest way out (the box's long
     axis): in one go it turns in place at most that half turn and the turn to aim."""
     robot, dt = preset("m2wr"), 0.05
-    settings = {"budget": math.inf} if make is MPCSafetyFilter else {}
-    safety = make(robot, dt, deadlock_time=0.5, **settings)
+    safety = make(robot, dt, deadlock_time=0.5, budget=math.inf)
     escape = Escape(safety)
     half_x, half_y = 0.55, robot.radius + safety.margin + 0.08
     scene = Scene.of(*box((0.0, 0.0), (2.0 * half_x, 2.0 * half_y)))
@@ -568,7 +571,7 @@ def test_a_robot_held_standing_while_asked_to_drive_straight_on_escapes_after_st
     robot, dt = preset("rosbot"), 0.05
 
     def first_escape(**settings: float) -> tuple[int, str]:
-        inner = make(robot, dt) if make is CBFSafetyFilter else make(robot, dt, budget=math.inf)
+        inner = make(robot, dt, budget=math.inf)
         scene = Scene.of(wall(robot.radius + inner.margin + 0.01))
         escape = Escape(inner, **settings)
         pose, velocity = Pose2D(), np.zeros(2)
