@@ -29,10 +29,11 @@ ROBOTS = Path(__file__).resolve().parents[2] / "benchmarks" / "robots"
 WALL = ((1.0, -1.5, 1.0, 1.5),)     # 3 m wide, 1 m ahead; the goal 3 m ahead, straight behind it
 
 
-# Every episode here runs its filter without the compute budget (reproducible_settings): a call preempted past it
-# brakes or follows its last plan, and the episode would depend on the machine's load (two CI runs failed on it,
-# 2026-11-29: an escape one step longer, a deadline's fallback among the escape's statuses). The deadline has tests
-# of its own (tests/filters/test_cbf_deadline.py, tests/filters/test_mpc_deadline.py).
+# Every episode and closed loop here runs its filter without the compute budget (reproducible_settings,
+# budget=math.inf): a call preempted past it brakes or follows its last plan, and the run would depend on the
+# machine's load (a CI run failed on it, 2026-11-29: an escape one step longer; under load a deadline's fallback
+# came among the escape's statuses). The deadline has tests of its own (tests/filters/test_cbf_deadline.py,
+# tests/filters/test_mpc_deadline.py).
 def goal_behind_the_wall(robot: str, filter_name: str, escape: bool, **settings) -> Episode:
     segments = WALL if robot != "m2wr" else ((1.2, -1.5, 1.2, 1.5),)
     return Episode(robot=robot, filter=filter_name, base="ramp_limit", dt=0.05, segments=segments, nominal="goal",
@@ -60,7 +61,7 @@ def test_a_nominal_that_flips_to_a_feasible_turn_now_and_then_does_not_hide_the_
     """A go-to-goal at its heading threshold flips between driving into the wall and turning: one period
     of progress a second must not reset the deadlock clock (before: it did, and the escape never started)."""
     robot = preset("rosbot")
-    safety = CBFSafetyFilter(robot, 0.05, deadlock_time=1.5)
+    safety = CBFSafetyFilter(robot, 0.05, deadlock_time=1.5, budget=math.inf)
     scan = synthetic_scan(robot, Scene.of(wall(robot.radius + safety.margin + 0.2)))
     velocity = np.zeros(2)
     reported = None
@@ -85,8 +86,8 @@ def test_with_the_escape_the_robot_goes_round_and_reaches_the_goal(robot, filter
 
 
 @pytest.mark.parametrize("make", [
-    lambda robot, dt: Escape(CBFSafetyFilter(robot, dt)),
-    lambda robot, dt: Escape(MPCSafetyFilter(robot, dt)),
+    lambda robot, dt: Escape(CBFSafetyFilter(robot, dt, budget=math.inf)),
+    lambda robot, dt: Escape(MPCSafetyFilter(robot, dt, budget=math.inf)),
     lambda robot, dt: Escape(ZonesFilter(robot, dt)),
 ], ids=["cbf", "mpc", "zones"])
 def test_the_escape_wrapper_meets_the_filter_contract(make):
@@ -116,7 +117,7 @@ def test_every_escaped_command_keeps_every_row_of_the_filter(scene, name, turn):
         if result.escape:
             # The rows of the look-ahead the answer was built with (the filter shortens it in a narrow place).
             lookahead = escape.inner.lookahead
-            checker = CBFSafetyFilter(robot, 0.05, lookahead=lookahead, min_lookahead=lookahead)
+            checker = CBFSafetyFilter(robot, 0.05, lookahead=lookahead, min_lookahead=lookahead, budget=math.inf)
             rows = checker.rows(scan, velocity, reduce=False)
             z = np.concatenate((result.u, np.maximum(np.abs(result.u), np.abs(velocity))))
             slack = result.slack / 0.05 if result.status.value == "slack" else 0.0
@@ -210,11 +211,12 @@ def test_with_one_look_ahead_the_cbf_does_not_get_through_the_door():
 
 
 @pytest.mark.parametrize(("make", "expected"), [
-    (lambda robot: CBFSafetyFilter(robot, 0.05), lambda robot, safety: robot.radius + safety.margin),
-    (lambda robot: CBFSafetyFilter(robot, 0.05, min_lookahead=0.1),
+    (lambda robot: CBFSafetyFilter(robot, 0.05, budget=math.inf), lambda robot, safety: robot.radius + safety.margin),
+    (lambda robot: CBFSafetyFilter(robot, 0.05, min_lookahead=0.1, budget=math.inf),
      lambda robot, safety: robot.radius + safety.margin + 0.1),
-    (lambda robot: CBFSafetyFilter(robot, 0.05, lookahead=0.0), lambda robot, safety: robot.radius + safety.margin),
-    (lambda robot: MPCSafetyFilter(robot, 0.05), lambda robot, safety: robot.radius + safety.margin),
+    (lambda robot: CBFSafetyFilter(robot, 0.05, lookahead=0.0, budget=math.inf),
+     lambda robot, safety: robot.radius + safety.margin),
+    (lambda robot: MPCSafetyFilter(robot, 0.05, budget=math.inf), lambda robot, safety: robot.radius + safety.margin),
 ], ids=["cbf", "cbf-one-lookahead", "cbf-no-lookahead", "mpc"])
 def test_a_corridor_is_clear_when_the_body_fits_with_the_filters_margin_and_look_ahead(make, expected):
     robot = preset("rosbot")
@@ -277,7 +279,7 @@ def _pincer(robot_name: str) -> tuple[Scene, float]:
     one to the right (goal_m2wr seed 4). Turning either way swings the control point towards one of them, while
     the body (a disk about the base origin) moves nowhere."""
     robot = preset(robot_name)
-    safety = CBFSafetyFilter(robot, 0.05)
+    safety = CBFSafetyFilter(robot, 0.05, budget=math.inf)
     reach = robot.radius + safety.lookahead + safety.margin + 0.005     # from the control point to each pole's edge
     pole = 0.03
     control = np.array([safety.lookahead, 0.0])
@@ -293,10 +295,10 @@ def test_the_escape_turns_in_place_between_two_obstacles_that_pin_the_look_ahead
     robot = preset(robot_name)
     scene, _ = _pincer(robot_name)
     scan = synthetic_scan(robot, scene)
-    alone = CBFSafetyFilter(robot, 0.05)
+    alone = CBFSafetyFilter(robot, 0.05, budget=math.inf)
     for turn in (-robot.omega_max, robot.omega_max):
         assert abs(alone.filter((0.0, turn), scan).u[1]) < 0.2 * robot.omega_max     # pinned both ways
-    escape = Escape(CBFSafetyFilter(robot, 0.05, deadlock_time=0.5))
+    escape = Escape(CBFSafetyFilter(robot, 0.05, deadlock_time=0.5, budget=math.inf))
     turned = 0.0
     for _ in range(60):    # the nominal pushes straight ahead: a deadlock, then the escape
         result = escape.filter((robot.v_max, 0.0), scan)
@@ -601,7 +603,7 @@ def test_standing_before_a_hard_turn_of_the_nominal_waits_for_the_filters_deadlo
     scan = synthetic_scan(robot, scene)
     for nominal, expected in (((robot.v_max, 0.0), 10), ((robot.v_max, 0.2 * robot.omega_max), 10),
                               ((robot.v_max, turn * robot.omega_max), 30)):
-        escape = Escape(CBFSafetyFilter(robot, 0.05))
+        escape = Escape(CBFSafetyFilter(robot, 0.05, budget=math.inf))
         step = next(step for step in range(60) if escape.filter(nominal, scan).escape)
         assert step == expected, (nominal, step)
 
@@ -641,7 +643,7 @@ def test_the_side_comes_from_a_door_only_the_narrow_body_fits_and_never_from_a_r
     for scene, expected in ((door, [1, 1]), (plain, None)):
         sides = []
         for turn in (1e-15, -1e-15):
-            escape = Escape(CBFSafetyFilter(robot, 0.05, narrow_body="cover"))
+            escape = Escape(CBFSafetyFilter(robot, 0.05, narrow_body="cover", budget=math.inf))
             scan = synthetic_scan(robot, scene, Pose2D())
             escape._start(np.array([0.5, turn]), (scan,), scan.points(), None)
             sides.append(escape._side)
@@ -680,7 +682,7 @@ def test_a_way_leads_back_to_where_a_deadlock_began_when_that_place_lies_ahead_w
     side from it and went back round the box to that place (twice the Puzzlebot's corridor half-width is 0.275 m).
     A way passes such a place as :meth:`Escape._needed` counts it: within twice the half-width of its centre line
     or 30 degrees of it."""
-    escape = Escape(CBFSafetyFilter(preset("puzzlebot"), 0.05))
+    escape = Escape(CBFSafetyFilter(preset("puzzlebot"), 0.05, budget=math.inf))
     assert escape.clear_half_width == pytest.approx(0.1375, abs=1e-3)
     for side in (1.0, -1.0):
         escape._spots = [np.array([along, side * off])]
