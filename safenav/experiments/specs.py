@@ -155,6 +155,11 @@ def episode_specs(cells: Iterable[Cell], seeds: Iterable[int], duration: float |
                   record_seeds: Iterable[int] = ()) -> list[EpisodeSpec]:
     """One spec per cell and seed, in cell order then seed order.
 
+    The specs keep each filter's defaults, its compute budget included: a call that a loaded machine
+    preempts past it brakes, so the same seed can give another episode. Runs to compare (the sweeps,
+    the tests) replace each spec's ``filter_options`` with
+    :func:`~safenav.experiments.runner.reproducible_settings` of its filter.
+
     Args:
         cells: the cells.
         seeds: the seeds of every cell (the same seed draws the same world in every filter).
