@@ -56,7 +56,7 @@ from safenav.experiments import (
     run_spec,
     timing_table,
 )
-from safenav.experiments.runner import reproducible_settings, spec_cost
+from safenav.experiments.runner import reproducible_specs, spec_cost
 from safenav.experiments.stats import pooled_records
 from safenav.experiments.tables import LIVENESS_COLUMNS, SAFETY_COLUMNS, summary_table
 from safenav.filters import FILTER_NAMES, FILTERS, unescaped
@@ -152,7 +152,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.odometry:
         specs = [dataclasses.replace(spec, odometry=True) for spec in specs]
     if not args.real_time:   # the same seed, the same episode, whatever the machine's load
-        specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter)) for spec in specs]
+        specs = reproducible_specs(specs)
     if args.range_noise is not None:
         specs = [dataclasses.replace(spec, sim_options={**dict(spec.sim_options), "range_noise": args.range_noise})
                  for spec in specs]

@@ -31,9 +31,9 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import ModuleType
 from typing import IO, Any, TypeVar
@@ -52,7 +52,7 @@ from safenav.sim_bullet import SimConfig
 from safenav.worlds import World
 
 __all__ = ["BACKENDS", "EpisodeOutcome", "JobRunner", "Progress", "add_sweep_options", "reproducible_settings",
-           "run_jobs", "run_spec", "run_specs", "spec_cost", "sweep_settings"]
+           "reproducible_specs", "run_jobs", "run_spec", "run_specs", "spec_cost", "sweep_settings"]
 
 BACKENDS = ("process", "ray")
 """Where :func:`run_jobs` runs: a local process pool (the default), or Ray tasks (the ``distributed`` extra)."""
@@ -175,6 +175,13 @@ def reproducible_settings(filter_name: str) -> dict[str, Any]:
     filters run them without the budget (``budget=inf``); the deadline has its own tests.
     """
     return {"budget": math.inf} if unescaped(filter_name) in ("mpc", "cbf") else {}
+
+
+def reproducible_specs(specs: Iterable[EpisodeSpec]) -> list[EpisodeSpec]:
+    """``specs`` with each filter run without its compute budget (:func:`reproducible_settings` added to the
+    spec's own filter options): each episode then depends on its seed alone, not on the machine's load."""
+    return [replace(spec, filter_options={**dict(spec.filter_options), **reproducible_settings(spec.filter)})
+            for spec in specs]
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:

@@ -157,8 +157,7 @@ def episode_specs(cells: Iterable[Cell], seeds: Iterable[int], duration: float |
 
     The specs keep each filter's defaults, its compute budget included: a call that a loaded machine
     preempts past it brakes, so the same seed can give another episode. Runs to compare (the sweeps,
-    the tests) replace each spec's ``filter_options`` with
-    :func:`~safenav.experiments.runner.reproducible_settings` of its filter.
+    the tests) pass them through :func:`~safenav.experiments.runner.reproducible_specs`.
 
     Args:
         cells: the cells.

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from safenav import InvalidConfig, UnknownName
-from safenav.experiments import cell_records, episode_specs, matrix, run_specs
-from safenav.experiments.runner import JobRunner, reproducible_settings, run_jobs
+from safenav.experiments import EpisodeSpec, cell_records, episode_specs, matrix, run_specs
+from safenav.experiments.runner import JobRunner, reproducible_settings, reproducible_specs, run_jobs
 
 # One worker runs every test here, in this order (pytest-xdist's loadgroup): the first asserts that no cluster
 # answers, and the module's local Ray of another worker would.
@@ -53,8 +53,7 @@ def local_ray():
 def test_ray_gives_the_process_pools_outcomes(local_ray):
     cells = matrix(scenarios=["stop_at_wall", "clutter_puzzlebot"], policies=["stop_at_wall_buggy", "random_walk"],
                    filters=["none", "cbf"])
-    specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter))   # not the machine's load
-             for spec in episode_specs(cells, range(2), duration=2.0)]
+    specs = reproducible_specs(episode_specs(cells, range(2), duration=2.0))     # not the machine's load
     pool = run_specs(specs, workers=2, progress=False)
     on_ray = run_specs(specs, workers=2, progress=False, backend="ray")
     # any callable, a built-in included, in the order of the items
@@ -128,3 +127,7 @@ def test_reproducible_settings_take_the_compute_budgets_away_only():
     for name in ("mpc", "mpc+escape", "cbf", "cbf+escape"):
         assert reproducible_settings(name) == {"budget": math.inf}
     assert reproducible_settings("zones") == {} and reproducible_settings("none") == {}
+    own = EpisodeSpec("goal_rosbot", "go_to_goal", "cbf", seed=3, filter_options={"margin": 0.05, "budget": 0.01})
+    zones = EpisodeSpec("stop_at_wall", "stop_at_wall", "zones", seed=0, filter_options={"stop_distance": 0.3})
+    assert reproducible_specs([own, zones]) == [
+        dataclasses.replace(own, filter_options={"margin": 0.05, "budget": math.inf}), zones]   # the rest kept

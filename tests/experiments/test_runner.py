@@ -1,6 +1,5 @@
 """Running specs: failures fail the run, outcomes do not depend on the number of workers, progress."""
 
-import dataclasses
 import io
 import re
 
@@ -8,7 +7,7 @@ import pytest
 
 from safenav import InvalidConfig, UnknownName
 from safenav.experiments import EpisodeSpec, Progress, cell_records, episode_specs, matrix, outcome_table, run_specs
-from safenav.experiments.runner import reproducible_settings
+from safenav.experiments.runner import reproducible_specs
 from safenav.scenarios import scenario
 
 
@@ -43,8 +42,7 @@ TIMING = {"filter_p50_us", "filter_p99_us", "episode_wall_s"}
 def test_outcomes_do_not_depend_on_the_number_of_workers():
     cells = matrix(scenarios=["stop_at_wall", "clutter_puzzlebot"], policies=["stop_at_wall_buggy", "random_walk"],
                    filters=["none", "cbf"])
-    specs = [dataclasses.replace(spec, filter_options=reproducible_settings(spec.filter))   # not the machine's load
-             for spec in episode_specs(cells, range(2), duration=3.0)]
+    specs = reproducible_specs(episode_specs(cells, range(2), duration=3.0))     # not the machine's load
     serial = cell_records(run_specs(specs, workers=1, progress=False))
     parallel = cell_records(run_specs(specs, workers=2, progress=False))
     strip = [[{k: v for k, v in record.items() if k not in TIMING} for record in records]
