@@ -59,6 +59,14 @@ wheel) and the ``safenav`` this process imported, so the workers run the very co
 (a checkout's, not an older installed one). Compiled dependencies must be installed on every node."""
 
 
+def add_real_time_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--real-time``: keep the filters' compute budgets, which a sweep takes away otherwise
+    (:func:`~safenav.experiments.runner.reproducible_settings`)."""
+    parser.add_argument("--real-time", action="store_true",
+                        help="keep the filters' compute budgets: a call preempted past its budget brakes or follows "
+                             "its last plan, as on a robot, and the results then depend on the machine's load")
+
+
 def sweep_parser(prog: str, description: str, add_options: Callable[[argparse.ArgumentParser], None], *,
                  real_time: bool = False) -> argparse.ArgumentParser:
     """A sweep's command line: its own options, then where it runs (``--workers``, ``--backend``,
@@ -75,8 +83,7 @@ def sweep_parser(prog: str, description: str, add_options: Callable[[argparse.Ar
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_options(parser)
     if real_time:
-        parser.add_argument("--real-time", action="store_true",
-                            help="keep the filters' compute budgets (results then depend on the machine's load)")
+        add_real_time_option(parser)
     add_sweep_options(parser)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     return parser

@@ -54,7 +54,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import SHIPPED, opt_in_settings, run_cli, where
+from benchmarks.common import SHIPPED, add_real_time_option, opt_in_settings, run_cli, where
 from safenav._checks import argument_type, number
 from safenav._optional import require
 from safenav.errors import InvalidConfig
@@ -977,9 +977,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--latencies", nargs="+", type=argument_type(number, low=0.0, high=1.0), default=[],
                         metavar="S", help="also search every cell with every scan this old [s] (taken where the "
                                           "robot was then, stamped then; the filter is told the time)")
-    parser.add_argument("--real-time", action="store_true",
-                        help="keep the filters' compute budgets: a call preempted past its budget brakes or follows "
-                             "its last plan, as on a robot, and the outcomes then depend on the machine's load")
+    add_real_time_option(parser)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
     add_sweep_options(parser)
