@@ -812,32 +812,33 @@ class SafetyFilter(abc.ABC):
                   scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:
         """The checks every filter needs around :meth:`_filter` (see :meth:`filter`)."""
         warnings = (clock_note,) if clock_note else ()
+        # The command is held until the next call: dt, or a late call's measured period (A3). Braking too is
+        # planned for that period: the nearest stop the acceleration limits reach within it.
+        late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
+        held = period if late else self.dt
         if current is not None and not _finite(current):
             return self._brake(nominal, None, FilterStatus.BAD_INPUT, "bad_input",
-                               f"velocity is not finite: {current.tolist()}", warnings=warnings)
+                               f"velocity is not finite: {current.tolist()}", warnings=warnings, period=held)
         ages, stale = self._ages(scans, scan_age, now)
         if stale:
-            return self._brake(nominal, current, FilterStatus.STALE, "stale", stale, warnings=warnings)
+            return self._brake(nominal, current, FilterStatus.STALE, "stale", stale, warnings=warnings, period=held)
         if not _finite(nominal):
             return self._brake(nominal, current, FilterStatus.BAD_INPUT, "bad_input",
-                               f"u_nom is not finite: {nominal.tolist()}", warnings=warnings)
+                               f"u_nom is not finite: {nominal.tolist()}", warnings=warnings, period=held)
         if all(scan.n_informative == 0 for scan in scans):
             beams = sum(scan.n_beams for scan in scans)
             return self._brake(nominal, current, FilterStatus.NO_DATA, "no_data",
                                f"none of the {beams} beams is informative (all NaN or out of range)",
-                               warnings=warnings)
+                               warnings=warnings, period=held)
         scans, error = self._compensated(scans, current, ages)
-        held = self.dt
-        late = period is not None and period > self.dt * (1.0 + LATE_TOLERANCE)
-        if late:
-            held = period
         view = self._observe(scans, held, error)
         result = self._filter(nominal, view, current, held)
         self._remember(view, error)
         result = self._told_horizon(result, view)
         if not _finite(result.u):
             return self._brake(nominal, current, FilterStatus.FALLBACK, "solver",
-                               f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings)
+                               f"the filter produced a non-finite command {result.u.tolist()}", warnings=warnings,
+                               period=held)
         extras: dict[str, Any] = dict(period=held)
         if warnings or result.warnings:
             extras["warnings"] = result.warnings + warnings
@@ -1085,11 +1086,13 @@ class SafetyFilter(abc.ABC):
 
     def _brake(self, nominal: np.ndarray, velocity: np.ndarray | None, status: FilterStatus, family: str,
                detail: str, **details: Any) -> FilterResult:
-        """A result that brakes as hard as the acceleration limits allow (from ``velocity`` when known)."""
+        """A result that brakes as hard as the acceleration limits allow (from ``velocity`` when known) over the
+        period the command is held (``details["period"]`` [s]: the call's, ``dt`` when not given): the command
+        nearest a stop that the limits reach within it."""
         self._on_brake()
         start = self._braking_start(velocity)
-        u = self.robot.brake(start, self.dt if start is not None else None)
-        details.setdefault("period", self.dt)
+        period = details.setdefault("period", self.dt)
+        u = self.robot.brake(start, period if start is not None else None)
         return FilterResult(u=u, u_nom=nominal, status=status, reason=Reason(family, detail), **details)
 
 

@@ -110,8 +110,8 @@ class ZonesFilter(SafetyFilter):
     passes unchanged. The result reports the zone in :attr:`FilterResult.message`
     (``"stop zone: ..."``, ``"slowdown zone: ..."``) with status ``OK``: this is the
     filter's normal action, not a failure. With ``velocity`` given the command is also
-    clipped to what the acceleration limits allow within one period (a real base cannot
-    stop at once either).
+    clipped to what the acceleration limits allow within the period it is held (``dt``, or a
+    late call's measured period: a real base cannot stop at once either).
 
     Args:
         robot: the robot.
@@ -145,7 +145,7 @@ class ZonesFilter(SafetyFilter):
             reason = Reason("zone", f"slowdown zone: {len(near)} points inside", _nearest(near))
         else:
             u = u_nom
-        limited = self.robot.clip(u, velocity, self.dt if velocity is not None else None)
+        limited = self.robot.clip(u, velocity, period if velocity is not None else None)
         if reason is None and not np.array_equal(limited, u_nom):
             reason = Reason("acceleration" if velocity is not None else "limits",
                             "clipped to the velocity and acceleration limits")

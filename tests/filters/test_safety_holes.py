@@ -383,6 +383,78 @@ def test_late_calls_with_the_time_given_are_planned_for_the_measured_period(filt
     assert {row["status"] for row in log} & {"late"}
 
 
+class _NoAnswer:
+    """A back-end of either filter that never answers (a failed solve)."""
+
+    name = "no answer"
+    direct_rows = 512
+
+    def solve(self, problem, *args, **kwargs):
+        from safenav.filters.mpc import NLPOutcome
+        from safenav.filters.qp import QPOutcome
+        if isinstance(self.kind, MPCSafetyFilter):
+            return NLPOutcome(None, 0.0, 0.0, "no answer", 0, 0.0)
+        return QPOutcome(None, "no answer", 0.0)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc", "zones"])
+@pytest.mark.parametrize("cause", ["stale scan", "no answer", "nothing to act on"])
+@pytest.mark.parametrize("periods", [1, 3])
+def test_a_late_call_that_brakes_brakes_at_the_limits_over_the_period_its_command_is_held(filter_name, cause,
+                                                                                            periods):
+    # A call `periods` periods after the previous one plans its command to be held that long (A3). When it brakes
+    # instead (a stale scan, a solve with no answer, the zones' stop polygon), the base holds the braking command
+    # as long: braking "at the acceleration limits" means the command nearest a stop that the limits reach within
+    # that held period. Before, every brake was the nearest stop within one dt, held `periods` dt: a base calls
+    # came three periods apart braked at a third of its limits.
+    robot, dt = preset("rosbot"), 0.05
+    if filter_name == "zones" and cause == "no answer":
+        cause = "stop zone"
+    safety = make_filter(filter_name, robot, dt)
+    if cause == "no answer":
+        backend = _NoAnswer()
+        backend.kind = safety
+        safety.backend = backend
+    velocity = np.array([0.8 * robot.v_max, 0.5 * robot.omega_max])
+    # A wall ahead within the zones' stop polygon, too near for the nominal to pass; "nothing to act on": every
+    # reading NaN.
+    ahead = robot.radius + (0.05 if filter_name == "zones" else 0.15)
+    scan = synthetic_scan(robot, Scene.of(Segment((ahead, -1.0), (ahead, 1.0))))
+    safety.filter(velocity, scan, velocity=velocity, now=10.0, scan_age=0.0)
+    now = 10.0 + periods * dt
+    if cause == "nothing to act on":
+        scan = scan.with_ranges(np.full(scan.n_beams, math.nan))
+    result = safety.filter(velocity, scan, velocity=velocity, now=now,
+                           scan_age=2.0 * safety.scan_timeout if cause == "stale scan" else 0.0)
+    held = periods * dt
+    assert result.period == pytest.approx(held)
+    assert result.braked or cause == "stop zone", result.message
+    assert result.reason is not None and result.reason.family == {
+        "stale scan": "stale", "no answer": "solver", "nothing to act on": "no_data", "stop zone": "zone"}[cause]
+    np.testing.assert_allclose(result.u, robot.brake(velocity, held), atol=1e-12, err_msg=result.message)
+
+
+@pytest.mark.parametrize("filter_name", ["cbf", "mpc", "zones"])
+def test_with_every_scan_stale_and_calls_three_periods_apart_the_base_stops_within_its_braking_distance(filter_name):
+    # From full speed, every scan too old: every call brakes. The first call cannot know the next comes three
+    # periods later (it brakes for one dt and the command is held for three); from the second on each brakes for
+    # the period it measured. Bound: the braking distance at a_max plus the first call's excess, at most v (m-1) dt.
+    # Before, each call braked for one dt held three: 0.95 m.
+    robot, dt, periods = preset("rosbot"), 0.05, 3
+    safety = make_filter(filter_name, robot, dt)
+    scan = synthetic_scan(robot, Scene.of())
+    velocity, x, now = np.array([robot.v_max, 0.0]), 0.0, 0.0
+    for _ in range(40):
+        result = safety.filter(velocity, scan, velocity=velocity, now=now, scan_age=2.0 * safety.scan_timeout)
+        assert result.status is FilterStatus.STALE
+        for _ in range(10 * periods):    # a base ramping at its limits, in sub-steps
+            velocity = robot.clip(result.u, velocity, dt / 10)
+            x += float(velocity[0]) * dt / 10
+        now += periods * dt
+    assert velocity[0] == 0.0
+    assert x <= robot.v_max**2 / (2.0 * robot.a_max) + robot.v_max * (periods - 1) * dt + 1e-9
+
+
 # ------------------------------------------------------------------ hole 6: one slack for every obstacle row
 
 

@@ -761,7 +761,7 @@ class MPCSafetyFilter(SafetyFilter):
                 frontier.blocks_backward and problem.upper[0, 0] < (0.0 if frontier.gap_backward else -cap)):
             return self._brake(u_nom, velocity, FilterStatus.BRAKING, "unknown",
                                "cannot stop before moving towards unknown space within the acceleration limits; "
-                               "braking at the limits", **details)
+                               "braking at the limits", period=period, **details)
 
         # Fast path: u_nom (clipped to the reachable box), held, then brake at the limits.
         first = np.clip(u_nom, problem.lower[0], problem.upper[0])
@@ -790,7 +790,7 @@ class MPCSafetyFilter(SafetyFilter):
             return self._fallback(problem, shifted, "solver", outcome.message, outcome.solve_time, details)
         others: list[tuple[str, np.ndarray, PlanCheck]] = []
         if outcome.check.clearance < -VERIFY_TOLERANCE:
-            others = self._plans_at_hand(problem, shifted, hold)
+            others = self._plans_at_hand(problem, shifted)
             outcome = _least_slack(outcome, others)
         if outcome.check.clearance < -SPLIT_SLACK and not split:
             outcome = _least_slack(self._split_slack(problem, outcome, candidate), others)
@@ -831,7 +831,7 @@ class MPCSafetyFilter(SafetyFilter):
             return solved
         return solved._replace(commands=held, check=check, held=True)
 
-    def _plans_at_hand(self, problem: MPCProblem, shifted: np.ndarray | None, hold: int
+    def _plans_at_hand(self, problem: MPCProblem, shifted: np.ndarray | None
                        ) -> list[tuple[str, np.ndarray, PlanCheck]]:
         """The plans besides the solver's answer that pass the checks of ``problem`` (the velocity and acceleration
         bounds; any slack), named, with their checks: the last plan shifted by the call's period (its first command
@@ -842,9 +842,15 @@ class MPCSafetyFilter(SafetyFilter):
         neither that no plan needs less nor that none needs none.
         """
         plans = [] if shifted is None else [("the last plan", self._repair(shifted, problem))]
-        plans.append(("braking at the limits", self._braking(np.clip(0.0, problem.lower[0], problem.upper[0]), hold)))
+        plans.append(("braking at the limits", self._braking_now(problem)))
         checked = [(name, commands, self.check_plan(problem, commands)) for name, commands in plans]
         return [(name, commands, check) for name, commands, check in checked if check.limits <= BOUND_TOLERANCE]
+
+    def _braking_now(self, problem: MPCProblem) -> np.ndarray:
+        """Braking at the acceleration limits from now: the command nearest a stop within the box of the problem's
+        first block (what the limits reach within the call's period, ``hold`` periods, from the command origin),
+        held for the block, then each block nearer zero by the limits: ``(P, 2)``."""
+        return self._braking(np.clip(0.0, problem.lower[0], problem.upper[0]), problem.hold)
 
     def _result(self, problem: MPCProblem, commands: np.ndarray, check: PlanCheck, details: dict[str, Any], *,
                 used: np.ndarray, solve_time: float, solver: str, held: bool = False, taken: str = ""
@@ -1054,7 +1060,7 @@ class MPCSafetyFilter(SafetyFilter):
             action = "following the last verified plan"
             clearance = self.check_plan(problem, commands).clearance
             if clearance < -VERIFY_TOLERANCE:
-                braking = self._braking(self.robot.brake(problem.velocity, self.dt))
+                braking = self._braking_now(problem)
                 if self.check_plan(problem, braking).clearance > clearance:
                     commands = braking
                     action = (f"the last verified plan comes {-clearance:.3f} m too near a point seen since: "
@@ -1062,7 +1068,7 @@ class MPCSafetyFilter(SafetyFilter):
             detail = f"{detail}; {action}"
             self._commands = commands
         else:
-            commands = self._braking(self.robot.brake(problem.velocity, self.dt))
+            commands = self._braking_now(problem)
             detail = f"{detail}; no verified plan, braking at the acceleration limits"
         poses = self.predict(commands, problem.velocity)
         return FilterResult(u=commands[0], u_nom=problem.u_nom, status=FilterStatus.FALLBACK,
