@@ -353,7 +353,7 @@ class SafetyCore:
             self.causes.clear("late")
         trigger_scan = self._scans.get(self.trigger_source) if trigger == "scan" else None
         try:
-            state = self._decide(now)
+            state = self._decide(now, period)
         except Exception as error:  # the node must brake, not die, on anything unforeseen
             self.causes.report("error", f"filter error, braking: {type(error).__name__}: {error}")
             state = NodeState(time=now, status=ERROR, reason=f"{type(error).__name__}: {error}",
@@ -378,8 +378,8 @@ class SafetyCore:
             outputs.markers(self.footprint(), result.constraint_points, result.constraint_points[list(result.active)])
         return state
 
-    def _decide(self, now: float) -> NodeState:
-        """The command for this tick and why (before publishing)."""
+    def _decide(self, now: float, period: float | None = None) -> NodeState:
+        """The command for this tick and why (before publishing); ``period``: the time since the previous tick [s]."""
         config = self.config
         enabled = self.enabled
         if self._command is None:
@@ -408,7 +408,10 @@ class SafetyCore:
         if problem is not None:
             status, reason = problem
             self.causes.report(cause, f"braking: {reason}")
-            brake = self.robot.brake(velocity, config.control_period if velocity is not None else None)
+            # Held until the next tick: the control period, or as long as this tick came after the previous one
+            # (as the filters plan a late call): the nearest stop the acceleration limits reach within it.
+            held = config.control_period if period is None else max(config.control_period, period)
+            brake = self.robot.brake(velocity, held if velocity is not None else None)
             return NodeState(time=now, status=status, reason=reason, enabled=enabled, u_nom=u_nom,
                              u=_pair(brake), intervened=True)
         result = self._filter(u_nom, scans, odometry, ages, now)

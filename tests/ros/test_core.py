@@ -200,6 +200,22 @@ def test_stale_odometry_brakes_and_fresh_odometry_limits_the_step():
     assert state.status == "stale" and "odometry" in state.reason
 
 
+@pytest.mark.parametrize("periods", [1, 3])
+def test_a_tick_that_brakes_for_a_stale_scan_brakes_at_the_limits_over_the_time_since_the_previous_tick(periods):
+    # The command is held until the next tick; a tick `periods` control periods after the previous one (an
+    # overloaded machine) plans for as long, like the filters' late calls: the nearest stop within that time.
+    # Before, always within one control period: a third of the limits when ticks came three periods apart.
+    core, out, _ = make_core(odom_topic="odom")
+    core.on_scan("scan", scan_message(None), 0.0)      # 0.5 s later it is stale
+    core.tick(0.5, out)
+    now = 0.5 + 0.05 * periods
+    core.on_command(twist(0.8, 0.0), now)
+    core.on_odometry(odometry(0.8, 0.0), now)
+    state = core.tick(now, out)
+    assert state.status == "stale" and "scan" in state.reason, state.reason
+    assert out.commands[-1] == pytest.approx(tuple(ROSBOT.brake((0.8, 0.0), 0.05 * periods)), abs=1e-12)
+
+
 def test_a_header_stamp_older_than_the_timeout_is_stale_even_if_the_message_just_arrived():
     core, out, _ = make_core()
     core.on_command(twist(0.5, 0.0), 10.0)
