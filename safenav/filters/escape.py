@@ -352,6 +352,7 @@ class Escape:
                 self._pending, self._blocking = True, None if moved is None else (float(moved[0]), float(moved[1]))
                 self._started_by = cause
             return result
+        backing = self._gap is None and self._backing > 0.0     # the command this call: backing out
         command = self._command(points, known, scans)
         # Through a gap the body fits, and turning in place, the filter uses its narrow settings (the CBF's
         # shortest look-ahead: a control point ahead of the body swings sideways when the robot turns in
@@ -363,6 +364,8 @@ class Escape:
         held = result.period if math.isfinite(result.period) else self.dt
         self._move(result.u, held)
         self._elapsed += held
+        if backing:      # for back_time [s], whatever the calls' period
+            self._backing -= held
         blocked = progress(result.u, command, np.abs(self.robot.upper)) < STALL_PROGRESS
         self._stalled = self._stalled + held if blocked else 0.0
         still = self._stands(result.u)
@@ -534,7 +537,6 @@ class Escape:
             self._aim(known, scans)
             return self._steer(self._gap, speed, turn)
         if self._backing > 0.0:
-            self._backing -= self.dt
             return np.array([-min(cfg.speed * -robot.v_min, 0.5 * -robot.v_min) if robot.v_min < 0 else 0.0,
                              side * 0.5 * turn])
         keep = robot.radius + self.margin + cfg.follow_distance

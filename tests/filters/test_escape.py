@@ -756,3 +756,32 @@ def test_through_a_gap_the_escape_hands_back_only_where_the_way_is_clear_past_wh
         left[across] = escape._should_leave(np.array([0.0, 1.0]), known, (scan,))
         assert left[across] or escape._gap is None            # through the gap either way: following, unless it left
     assert left == {0.8: False, 2.5: False, None: True}
+
+
+def test_with_late_calls_the_escape_backs_out_for_its_back_time_not_for_as_many_calls():
+    # A dead end 0.9 m wide, open behind; calls three periods apart with the time given (each command held 0.15 s).
+    # The escape's timers count the time its commands are held; backing out counted dt per call, so with late calls
+    # it backed out three times as long (13 calls of 0.15 s for back_time 0.6 s). Parsed from the reason: the command
+    # the escape sent through the filter.
+    robot, dt, periods = preset("rosbot"), 0.05, 3
+    safety = Escape(CBFSafetyFilter(robot, dt, **reproducible_settings("cbf")))
+    scene = Scene.of(Segment((0.6, -0.45), (0.6, 0.45)), Segment((-2.0, 0.45), (0.6, 0.45)),
+                     Segment((-2.0, -0.45), (0.6, -0.45)))
+    pose, velocity, now, held = Pose2D(), np.zeros(2), 0.0, periods * dt
+    runs, run = [], 0
+    for _ in range(80):
+        result = safety.filter((robot.v_max, 0.0), synthetic_scan(robot, scene, pose), velocity=velocity, now=now,
+                               scan_age=0.0)
+        sent = result.reason.detail.split("command (")[1] if result.escape else ""
+        if sent.startswith("-"):
+            run += 1
+        elif run:
+            runs, run = [*runs, run], 0
+        for _ in range(10 * periods):
+            velocity = robot.clip(result.u, velocity, dt / 10)
+            pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), dt / 10)
+        now += held
+    back_time = safety.config.back_time
+    assert runs, "the escape never backed out"
+    for run in runs:    # as many calls as back_time needs, one more where the sum of the periods rounds below it
+        assert run * held >= back_time - 1e-9 and (run - 1) * held <= back_time + 1e-9, (runs, held)
