@@ -29,9 +29,11 @@ given too (``pose=``, as the ROS nodes pass it), in a frame of its own far from 
 turned so that the heading crosses the wrap at ``+-pi`` as the robot turns. With ``--latencies``
 the cells are searched again with every scan that old: taken where the robot was that long
 before the call, stamped then, and the filter told the time (``now``), as a ROS driver's scans
-arrive. The CBF and the MPC run without their compute budgets, so that the same seed gives the
-same report on any machine under any load; ``--real-time`` keeps them (a call preempted past its
-budget then brakes or follows its last plan, as on a robot, and the report depends on the load).
+arrive. With ``--call-periods`` they are searched again with the filter called every that many ``dt``, told the
+time: below 1 early calls (a node triggered by a faster lidar; each command held shorter than planned), above 1
+late calls it must plan for (an overloaded machine). The CBF and the MPC run without their compute budgets, so
+that the same seed gives the same report on any machine under any load; ``--real-time`` keeps them (a call
+preempted past its budget then brakes or follows its last plan, as on a robot, and the report depends on the load).
 """
 
 from __future__ import annotations
@@ -587,7 +589,8 @@ def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
 
 def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
-           settings: dict[str, Any] | None = None, give_pose: bool = False, latency: float = 0.0) -> Episode:
+           settings: dict[str, Any] | None = None, give_pose: bool = False, latency: float = 0.0,
+           call_period: float = 1.0) -> Episode:
     """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
 
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
@@ -595,7 +598,8 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
     given the odometry pose too, in a frame whose origin is up to 1 km from the start along each axis and whose
     heading starts within
     0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door). ``latency``: every scan's age
-    [s] (:attr:`Episode.latency`).
+    [s] (:attr:`Episode.latency`). ``call_period``: the filter is called every that many ``dt``
+    (:attr:`Episode.period`).
     """
     spec = robot_spec(robot)
     R = spec.radius
@@ -678,6 +682,7 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
                           (math.pi - 0.3 * u[10]) * (1.0 if u[10] > 0.5 else -1.0))
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
                    odometry_frame=odometry_frame, latency=latency,
+                   period=None if call_period == 1.0 else call_period * dt,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
                    seed=int(1e6 * u[0]) % 10_000, settings=settings, passage=passage)
@@ -852,10 +857,12 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
            geometries: Sequence[str], nominals: Sequence[str], bodies: Sequence[str] = ("disk",),
            mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
            min_obstacle_width: float | None = None, narrow_body: str | None = None,
-           odometry: bool = False, latencies: Sequence[float] = (), real_time: bool = False) -> list[dict[str, Any]]:
+           odometry: bool = False, latencies: Sequence[float] = (), real_time: bool = False,
+           call_periods: Sequence[float] = ()) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base; with ``odometry`` each cell given the velocity again with the odometry pose
-    too, after all the others; then every cell again with each of ``latencies`` [s] as the scans' age); the
+    too, after all the others; then every cell again with each of ``latencies`` [s] as the scans' age; then every
+    cell again called every ``call_periods`` times ``dt``); the
     geometry and the nominal are searched inside each. With
     ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
     ``narrow_body`` every CBF and MPC cell of a disk body on a robot with a footprint gets it (CBFConfig and
@@ -884,6 +891,8 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
     if odometry:    # appended: the cells without the pose keep their indices (and so their seeds)
         cells += [dict(cell, give_pose=True) for cell in cells if cell["give_velocity"]]
     cells += [dict(cell, latency=float(latency)) for latency in latencies if latency > 0.0 for cell in list(cells)]
+    cells += [dict(cell, call_period=float(factor)) for factor in call_periods if factor != 1.0
+              for cell in list(cells)]
     return cells
 
 
@@ -915,7 +924,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
                      *([f"width-{settings['min_obstacle_width']:g}"] if "min_obstacle_width" in settings else []),
                      *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else []),
                      *(["pose"] if cell.get("give_pose") else []),
-                     *([f"latency-{cell['latency']:g}"] if cell.get("latency") else [])))
+                     *([f"latency-{cell['latency']:g}"] if cell.get("latency") else []),
+                     *([f"called-every-{cell['call_period']:g}dt"] if cell.get("call_period", 1.0) != 1.0 else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -977,6 +987,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     parser.add_argument("--latencies", nargs="+", type=argument_type(number, low=0.0, high=1.0), default=[],
                         metavar="S", help="also search every cell with every scan this old [s] (taken where the "
                                           "robot was then, stamped then; the filter is told the time)")
+    parser.add_argument("--call-periods", nargs="+", type=argument_type(number, low=0.05, high=10.0), default=[],
+                        metavar="F", help="also search every cell with the filter called every F dt, told the time "
+                                          "(F < 1: early calls, each command held shorter than planned; F > 1: late "
+                                          "calls it must plan for)")
     add_real_time_option(parser)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
@@ -1002,7 +1016,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
                    args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
-                   args.narrow_body, args.odometry, args.latencies, args.real_time)
+                   args.narrow_body, args.odometry, args.latencies, args.real_time, args.call_periods)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from benchmarks.falsify import (
     GEOMETRIES,
+    N_COORDINATES,
     SEARCHED_NOMINALS,
     TOLERANCE,
     Episode,
@@ -38,11 +41,19 @@ CELLS = [
          settings={"narrow_body": "cover"}),
     # The odometry pose as the ROS nodes pass it, in a frame far away whose heading crosses the wrap at +-pi.
     dict(robot="m2wr", filter_name="mpc+escape", base="ramp_limit", dt=0.05, give_velocity=True, give_pose=True),
+    # Called early (a node triggered by a faster lidar: each command held half as long as planned) and late (three
+    # periods apart: every command, braking too, planned for the measured period).
+    dict(robot="rosbot", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True, call_period=0.5),
+    dict(robot="puzzlebot", filter_name="mpc", base="ramp_limit", dt=0.05, give_velocity=True, call_period=3.0),
 ]
 
 
-@pytest.mark.parametrize("cell", CELLS, ids=lambda cell: f"{cell['robot']}-{cell['filter_name']}-{cell['base']}"
-                                                     f"{'-pose' if cell.get('give_pose') else ''}")
+def _cell_id(cell: dict) -> str:
+    every = f"-every-{cell['call_period']:g}dt" if "call_period" in cell else ""
+    return f"{cell['robot']}-{cell['filter_name']}-{cell['base']}{'-pose' if cell.get('give_pose') else ''}{every}"
+
+
+@pytest.mark.parametrize("cell", CELLS, ids=_cell_id)
 def test_short_adversarial_search_finds_no_violation(cell):
     cell = dict(cell, geometry=GEOMETRIES, nominal=SEARCHED_NOMINALS)
     margin = make_filter(cell["filter_name"], preset(cell["robot"]), cell["dt"], **cell.get("settings", {})).margin
@@ -216,3 +227,18 @@ def test_the_cells_run_without_compute_budgets_unless_asked_for_real_time():
         assert [_cell_key(cell) for cell in cells] == ["rosbot/cbf", "rosbot/mpc+escape", "rosbot/zones"]
         assert make_filter("cbf", preset("rosbot"), 0.05, **cells[0]["settings"]).budget == (
             math.inf if not real_time else 0.025)
+
+
+def test_the_cells_are_searched_again_with_the_filter_called_early_and_late():
+    """``--call-periods``: every cell again with the filter called every that many ``dt`` (the filter told the
+    time), after the others, so that theirs keep their indices (and seeds); the episodes hold each command that long."""
+    cells = _cells(["rosbot"], ["cbf"], ["ramp_limit"], [0.05], ["poles"], ["arc"], call_periods=(0.5, 1.0, 3.0))
+    assert [cell.get("call_period") for cell in cells] == [None, 0.5, 3.0]
+    assert [_cell_key(cell) for cell in cells] == ["rosbot/cbf", "rosbot/cbf/called-every-0.5dt",
+                                                    "rosbot/cbf/called-every-3dt"]
+    for cell, period in zip(cells, (None, 0.025, 0.15), strict=True):
+        episode = decode(np.full(N_COORDINATES, 0.3), margin=0.05, **cell)
+        assert episode.period == (None if period is None else pytest.approx(period))
+        _, log = run(dataclasses.replace(episode, duration=0.3), record=True)
+        assert len(log) == round(0.3 / (period or 0.05))
+        assert ("late" in {row["status"] for row in log[1:]}) == (period == 0.15)    # the first call has no period
