@@ -384,17 +384,18 @@ def test_late_calls_with_the_time_given_are_planned_for_the_measured_period(filt
 
 
 class _NoAnswer:
-    """A back-end of either filter that never answers (a failed solve)."""
+    """A back-end of the CBF (a QP) or the MPC (an NLP, ``nlp=True``) that never answers (a failed solve)."""
 
     name = "no answer"
     direct_rows = 512
 
+    def __init__(self, nlp: bool) -> None:
+        self.nlp = nlp
+
     def solve(self, problem, *args, **kwargs):
         from safenav.filters.mpc import NLPOutcome
         from safenav.filters.qp import QPOutcome
-        if isinstance(self.kind, MPCSafetyFilter):
-            return NLPOutcome(None, 0.0, 0.0, "no answer", 0, 0.0)
-        return QPOutcome(None, "no answer", 0.0)
+        return NLPOutcome(None, 0.0, 0.0, "no answer", 0, 0.0) if self.nlp else QPOutcome(None, "no answer", 0.0)
 
 
 @pytest.mark.parametrize("filter_name", ["cbf", "mpc", "zones"])
@@ -405,16 +406,14 @@ def test_a_late_call_that_brakes_brakes_at_the_limits_over_the_period_its_comman
     # A call `periods` periods after the previous one plans its command to be held that long (A3). When it brakes
     # instead (a stale scan, a solve with no answer, the zones' stop polygon), the base holds the braking command
     # as long: braking "at the acceleration limits" means the command nearest a stop that the limits reach within
-    # that held period. Before, every brake was the nearest stop within one dt, held `periods` dt: a base calls
-    # came three periods apart braked at a third of its limits.
+    # that held period. Before, every brake was the nearest stop within one dt, held `periods` dt: a base whose
+    # calls came three periods apart braked at a third of its limits.
     robot, dt = preset("rosbot"), 0.05
     if filter_name == "zones" and cause == "no answer":
         cause = "stop zone"
     safety = make_filter(filter_name, robot, dt)
     if cause == "no answer":
-        backend = _NoAnswer()
-        backend.kind = safety
-        safety.backend = backend
+        safety.backend = _NoAnswer(nlp=isinstance(safety, MPCSafetyFilter))
     velocity = np.array([0.8 * robot.v_max, 0.5 * robot.omega_max])
     # A wall ahead within the zones' stop polygon, too near for the nominal to pass; "nothing to act on": every
     # reading NaN.
