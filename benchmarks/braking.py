@@ -33,6 +33,8 @@ from typing import Any
 if __package__ in (None, ""):  # run as `python benchmarks/braking.py`: import this checkout
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import numpy as np
+
 from benchmarks.common import markdown_table, write_json
 from safenav.episode import EpisodeConfig, run_episode
 from safenav.experiments import wilson_interval
@@ -40,6 +42,7 @@ from safenav.filters import CBFSafetyFilter, make_filter
 from safenav.reference import StopAtWall
 from safenav.robot import preset
 from safenav.scenarios import scenario
+from safenav.synthetic import Scene, synthetic_scan
 
 VARIANTS = ("none", "cbf, acceleration ignored", "cbf", "mpc")
 
@@ -75,10 +78,6 @@ def late_calls(periods: Sequence[int] = (1, 2, 3, 4), filters: Sequence[str] = L
                substeps: int = 10) -> list[dict[str, Any]]:
     """The ROSbot from full speed, every scan stale: the distance [m] it runs until it stands, calls ``m`` periods
     apart (each command held ``m dt``), for each filter and each ``m`` of ``periods``."""
-    import numpy as np
-
-    from safenav.synthetic import Scene, synthetic_scan
-
     robot = preset("rosbot")
     scan = synthetic_scan(robot, Scene.of())
     rows = []
