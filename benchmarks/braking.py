@@ -77,7 +77,8 @@ LATE_FILTERS = ("cbf", "mpc", "zones")
 def late_calls(periods: Sequence[int] = (1, 2, 3, 4), filters: Sequence[str] = LATE_FILTERS, dt: float = 0.05,
                substeps: int = 10) -> list[dict[str, Any]]:
     """The ROSbot from full speed, every scan stale: the distance [m] it runs until it stands, calls ``m`` periods
-    apart (each command held ``m dt``), for each filter and each ``m`` of ``periods``."""
+    apart (each command held ``m dt``), for each filter and each ``m`` of ``periods``; with the statuses of every
+    call and the speed it ended at [m/s]."""
     robot = preset("rosbot")
     scan = synthetic_scan(robot, Scene.of())
     rows = []
@@ -85,15 +86,18 @@ def late_calls(periods: Sequence[int] = (1, 2, 3, 4), filters: Sequence[str] = L
         for m in periods:
             safety = make_filter(name, robot, dt)
             velocity, travelled, now, calls = np.array([robot.v_max, 0.0]), 0.0, 0.0, 0
+            statuses = set()
             while velocity[0] > 0.0 and calls < 1000:
                 result = safety.filter(velocity, scan, velocity=velocity, now=now, scan_age=2.0 * safety.scan_timeout)
+                statuses.add(result.status.value)
                 for _ in range(substeps * m):
                     velocity = robot.clip(result.u, velocity, dt / substeps)
                     travelled += float(velocity[0]) * dt / substeps
                 now += m * dt
                 calls += 1
             rows.append({"filter": name, "calls_every": m, "distance": travelled, "calls": calls,
-                         "braking_distance": robot.v_max**2 / (2.0 * robot.a_max), "status": result.status.value})
+                         "braking_distance": robot.v_max**2 / (2.0 * robot.a_max), "status": result.status.value,
+                         "statuses": sorted(statuses), "speed": float(velocity[0])})
     return rows
 
 
