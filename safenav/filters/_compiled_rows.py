@@ -473,10 +473,12 @@ def sqp_violated(centre_jacobian, move, dx, dy, inverse_radii, values, relief, b
 
 
 @_jit
-def plan_check(commands, velocity, rho, beta, dt, coast, offsets, points, guaranteed, radii, lower, upper, steps):
+def plan_check(commands, reached, velocity, rho, beta, dt, coast, offsets, points, guaranteed, radii, lower, upper,
+               steps):
     """MPCSafetyFilter.check_plan: the rollout (plan.BaseModel.knot_poses, geometry.unicycle_rollout), the disk
     centres at the knots (plan.disk_centres), the smallest knot distance per point and disk (plan.distances) and
-    the limits' violation; ``coast`` is the lag's time constant (0: no drift knot).
+    the limits' violation; ``coast`` is the lag's time constant (0: no drift knot); ``reached`` (P, 2) the
+    velocities at the periods' ends without a lag (plan.BaseModel.reached: the commands, or late blocks' ramps).
 
     Returns ``(limits, clearance, planned, distances (M, D), poses (P + 1, 3), velocities (P + 1, 2))``.
     """
@@ -491,14 +493,15 @@ def plan_check(commands, velocity, rho, beta, dt, coast, offsets, points, guaran
     velocities = np.empty((periods + 1, 2))
     velocities[0, 0], velocities[0, 1] = velocity[0], velocity[1]
     poses = np.zeros((periods + 1, 3))
+    ends = reached if rho == 0.0 else commands
     for k in range(periods):
         for axis in range(2):
             if rho == 0.0:
-                velocities[k + 1, axis] = commands[k, axis]
+                velocities[k + 1, axis] = reached[k, axis]
             else:   # lfilter([1 - rho], [1, -rho]): y = b0 x + z, z = rho y
                 velocities[k + 1, axis] = (1.0 - rho) * commands[k, axis] + rho * velocities[k, axis]
-        mean_v = commands[k, 0] + beta * (velocities[k, 0] - commands[k, 0])
-        mean_omega = commands[k, 1] + beta * (velocities[k, 1] - commands[k, 1])
+        mean_v = ends[k, 0] + beta * (velocities[k, 0] - ends[k, 0])
+        mean_omega = ends[k, 1] + beta * (velocities[k, 1] - ends[k, 1])
         turn = mean_omega * dt
         chord = mean_v * dt * np.sinc(0.5 * turn / math.pi)
         heading = poses[k, 2] + 0.5 * turn

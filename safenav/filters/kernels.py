@@ -113,5 +113,5 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.nearest_per_bin(np.array([0.1, -2.0]), np.array([0.5, 0.2]), 4)
     # the MPC's check of a plan: two periods, one disk
     commands, bounds = np.zeros((2, 2)), np.ones((2, 2))
-    kernels.plan_check(commands, np.zeros(2), 0.5, 0.5, 0.05, 0.1, np.zeros((1, 2)), points, np.zeros((2, 1)),
+    kernels.plan_check(commands, commands, np.zeros(2), 0.5, 0.5, 0.05, 0.1, np.zeros((1, 2)), points, np.zeros((2, 1)),
                        np.zeros((2, 1)), -bounds, bounds, np.ones((1, 2)))

@@ -12,6 +12,7 @@ import pytest
 from safenav import Pose2D, preset, unicycle_step
 from safenav.filters import MPCSafetyFilter
 from safenav.filters.mpc import BaseModel, PlanLayout, PlanModel, sqp
+from safenav.filters.mpc.plan import block_ramp
 from safenav.synthetic import Scene, Segment, synthetic_scan
 
 LAYOUTS = [(20, 20, 1), (51, 20, 1), (51, 20, 3), (12, 5, 1)]
@@ -27,11 +28,16 @@ def test_the_knots_model_is_the_every_period_model_through_the_interpolation(per
     knots = rng.uniform(-1.0, 1.0, (layout.n_knots, 2))
     velocity = rng.uniform(-0.5, 0.5, 2)
     poses, jacobian = PlanModel(periods, base, layout)(knots, velocity)
-    every_poses, every_jacobian = PlanModel(periods, base)(layout.expand(knots), velocity)
+    # A late call's blocks without a lag: the every-period model at the velocities the base reaches, each block
+    # ramped over its length (u -> R u + r w_0).
+    through = layout.interpolation
+    if hold > 1 and time_constant == 0.0:
+        through = block_ramp(periods, hold)[0] @ through
+    every_poses, every_jacobian = PlanModel(periods, base)(base.reached(layout.expand(knots), velocity, hold),
+                                                           velocity)
     assert poses.shape == every_poses.shape == (periods + (time_constant > 0.0), 3)
     np.testing.assert_allclose(poses, every_poses, rtol=0.0, atol=1e-12)
-    np.testing.assert_allclose(jacobian, every_jacobian @ np.kron(layout.interpolation, np.eye(2)), rtol=0.0,
-                               atol=1e-12)
+    np.testing.assert_allclose(jacobian, every_jacobian @ np.kron(through, np.eye(2)), rtol=0.0, atol=1e-12)
     # ... and the model's derivative (central differences).
     step = 1e-6
     for index in rng.choice(knots.size, 5, replace=False):

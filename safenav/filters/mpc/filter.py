@@ -225,7 +225,10 @@ class MPCSafetyFilter(SafetyFilter):
     **Late calls.** With ``now`` given, a call ``m`` periods after the previous one plans every
     command held for ``m`` periods (blocks of ``m`` equal commands, each block within what the
     acceleration limits allow in ``m`` periods of the previous one, ``e_act`` grown to the
-    block's length ``T = m dt``) and reports ``LATE``.
+    block's length ``T = m dt``) and reports ``LATE``. Without a lag the model ramps the velocity
+    to each block's command over the whole block, as a base that reaches each command within the
+    call period does (:func:`~safenav.filters.mpc.plan.block_ramp`); it is then exact for a base
+    ramping at its limits, and ``e_act`` bounds every base of the guarantee.
 
     **Guarantee.** If the world is static, every obstacle at least :attr:`smallest_obstacle` wide is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF
@@ -615,13 +618,14 @@ class MPCSafetyFilter(SafetyFilter):
 
     # ------------------------------------------------------------------ plans
 
-    def predict(self, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Poses ``(P + 1, 3)`` the model predicts for ``commands`` ``(P, 2)`` from ``velocity``, in the base frame."""
-        return self.model.rollout(commands, velocity)[0]
+    def predict(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> np.ndarray:
+        """Poses ``(P + 1, 3)`` the model predicts for ``commands`` ``(P, 2)`` held in blocks of ``hold`` periods (a
+        call ``hold`` periods late) from ``velocity``, in the base frame."""
+        return self.model.rollout(commands, velocity, hold)[0]
 
-    def knot_centres(self, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    def knot_centres(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> np.ndarray:
         """Where each body disk's centre is at every clearance knot of a plan: ``(K, D, 2)`` [m]."""
-        return disk_centres(self.model.knot_poses(commands, velocity)[0], self.offsets)
+        return disk_centres(self.model.knot_poses(commands, velocity, hold)[0], self.offsets)
 
     def check_plan(self, problem: MPCProblem, commands: np.ndarray) -> PlanCheck:
         """How far ``commands`` ``(P, 2)`` are from satisfying every constraint of ``problem``."""
@@ -634,12 +638,13 @@ class MPCSafetyFilter(SafetyFilter):
         if self._kernels is not None:
             model = self.model
             return PlanCheck(*self._kernels.plan_check(
-                plain(commands), plain(problem.velocity), model.rho, model.beta, model.dt, model.time_constant,
+                plain(commands), plain(model.reached(commands, problem.velocity, problem.hold)),
+                plain(problem.velocity), model.rho, model.beta, model.dt, model.time_constant,
                 plain(self.offsets), plain(problem.points), plain(problem.guaranteed), plain(problem.radii),
                 plain(problem.lower), plain(problem.upper), plain(steps)))
         limits = float(np.max(np.maximum(problem.lower - commands, commands - problem.upper)))
         limits = max(limits, float(np.max(np.abs(commands[1:] - commands[:-1]) - steps)))
-        knots, poses, velocities = self.model.knot_poses(commands, problem.velocity)
+        knots, poses, velocities = self.model.knot_poses(commands, problem.velocity, problem.hold)
         gaps = distances(disk_centres(knots, self.offsets), problem.points)
         if gaps.size == 0:
             return PlanCheck(limits, math.inf, math.inf, gaps, poses, velocities)
@@ -920,7 +925,7 @@ class MPCSafetyFilter(SafetyFilter):
             return np.arange(count)
         compiled = self._kernels
         if compiled is None:
-            gaps = [distances(self.knot_centres(commands, problem.velocity), problem.points)
+            gaps = [distances(self.knot_centres(commands, problem.velocity, problem.hold), problem.points)
                     for commands in references]
         else:   # the compiled check's distances (the same to rounding; ``known`` come from it too)
             gaps = [self.check_plan(problem, commands).distances for commands in references]
@@ -1070,7 +1075,7 @@ class MPCSafetyFilter(SafetyFilter):
         else:
             commands = self._braking_now(problem)
             detail = f"{detail}; no verified plan, braking at the acceleration limits"
-        poses = self.predict(commands, problem.velocity)
+        poses = self.predict(commands, problem.velocity, problem.hold)
         return FilterResult(u=commands[0], u_nom=problem.u_nom, status=FilterStatus.FALLBACK,
                             reason=Reason(family, detail), solver=self.backend.name, solve_time=solve_time,
                             plan=self._plan_array(poses, commands, problem.velocity), **details)

@@ -27,7 +27,7 @@ import casadi
 import numpy as np
 
 from safenav.errors import InvalidConfig
-from safenav.filters.mpc.plan import MIN_ROW_SCALE, BaseModel, PlanLayout
+from safenav.filters.mpc.plan import MIN_ROW_SCALE, BaseModel, PlanLayout, block_ramp
 
 if TYPE_CHECKING:
     from safenav.filters.mpc.sqp import NLPOutcome, PlanCost, PlanNLP
@@ -69,6 +69,15 @@ def _knot_poses(model: BaseModel, commands: casadi.SX, velocity: casadi.SX) -> c
     return casadi.horzcat(*poses)
 
 
+def _reached(model: BaseModel, commands: casadi.SX, velocity: casadi.SX, hold: int) -> casadi.SX:
+    """``(2, P)``: what the model is evaluated at for ``commands`` held in blocks of ``hold`` periods: without a lag,
+    the velocities the base reaches (:meth:`BaseModel.reached`); the commands otherwise."""
+    if hold <= 1 or model.rho != 0.0:
+        return commands
+    ramp, start = block_ramp(commands.shape[1], hold)
+    return casadi.mtimes(commands, casadi.DM(ramp.T)) + casadi.mtimes(velocity, casadi.DM(start).T)
+
+
 @functools.lru_cache(maxsize=32)
 def _model_function(periods: int, max_commands: int, hold: int, dt: float, time_constant: float) -> casadi.Function:
     layout = PlanLayout.of(periods, max_commands, hold)
@@ -76,7 +85,7 @@ def _model_function(periods: int, max_commands: int, hold: int, dt: float, time_
     knots = casadi.SX.sym("U", 2, layout.n_knots)
     commands = knots if layout.identity else casadi.mtimes(knots, casadi.DM(layout.interpolation.T))
     velocity = casadi.SX.sym("velocity", 2)
-    flat = casadi.vec(_knot_poses(model, commands, velocity))
+    flat = casadi.vec(_knot_poses(model, _reached(model, commands, velocity, hold), velocity))
     jacobian = casadi.jacobian(flat, casadi.vec(knots))
     # The Jacobian's transpose, stored column-major: the Jacobian row-major (no transposition per call).
     return casadi.Function("plan_model", [casadi.vec(knots), velocity],
@@ -178,7 +187,7 @@ def build_nlp(key: NLPKey) -> casadi.Function:
     relief = casadi.SX.sym("relief", n_points, n_disks)
     parameters = casadi.vertcat(velocity, target, casadi.vec(points), casadi.vec(radii), casadi.vec(relief))
     commands = knots if layout.identity else casadi.mtimes(knots, casadi.DM(layout.interpolation.T))
-    poses = _knot_poses(model, commands, velocity)
+    poses = _knot_poses(model, _reached(model, commands, velocity, layout.hold), velocity)
     cost_weights = key.cost.period_weights(layout.periods)
     w_v, w_omega = key.cost.weights
     cost = casadi.dot(cost_weights, w_v * (commands[0, :].T - target[0]) ** 2

@@ -18,6 +18,15 @@ along the exact arc of the mean velocity ``u_k + beta (w_k - u_k)`` and ends the
 ``w_{k+1} = u_k + rho (w_k - u_k)``, with ``rho = exp(-dt / tau)`` and
 ``beta = (tau / dt)(1 - rho)`` (``rho = 0``, ``beta = 1/2`` for ``tau = 0``).
 
+When calls come late, a command is held for the call period ``T = m dt`` and may differ from the
+velocity at its start by what the acceleration limits allow in ``T``; a base that reaches each
+command within the period (``tau = 0``) then reaches it by the end of ``T``, not of the block's first
+``dt``. The model ramps it over the whole block: at the end of the block's ``j``-th period
+(``j = 1..m``) the velocity is ``w + (j / m) (U - w)``, from the velocity ``w`` the block starts at
+(:func:`block_ramp`). That is the base ramping at its limits exactly, and the one from which any
+velocity between ``w`` and ``U`` strays least (half the change times ``T``, the actuator error's
+bound). A lag's model is the same whatever the call period.
+
 The body is one disk or several (:class:`~safenav.filters.body.BodyModel`); a disk whose
 centre sits at ``c`` in the base frame is at ``p_k + R(yaw_k) c`` at knot ``k``.
 """
@@ -122,6 +131,27 @@ class PlanLayout:
 
 
 @functools.lru_cache(maxsize=64)
+def block_ramp(periods: int, hold: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(R (P, P), r (P,))``: the velocities at the end of each of ``periods`` periods are ``R u + r w_0`` when each
+    block of ``hold`` commands ``u`` is reached linearly over the block from the velocity it starts at (``w_0``
+    for the first block, the previous block's command after it); the identity and zero for ``hold = 1``. Applied
+    to every period's command, so a plan whose commands change within a block (none the filter makes) ramps from
+    the command before the block too."""
+    ramp, start = np.zeros((periods, periods)), np.zeros(periods)
+    for k in range(periods):
+        block, share = divmod(k, hold)
+        share = (share + 1) / hold
+        ramp[k, k] = share
+        if block == 0:
+            start[k] = 1.0 - share
+        else:
+            ramp[k, block * hold - 1] += 1.0 - share
+    for array in (ramp, start):
+        array.flags.writeable = False
+    return ramp, start
+
+
+@functools.lru_cache(maxsize=64)
 def _layout(periods: int, max_commands: int, hold: int) -> PlanLayout:
     if hold > 1:
         knots = np.arange(0, periods, hold)
@@ -172,22 +202,36 @@ class BaseModel(NamedTuple):
         """Largest ``|u_k - w_k|`` in units of one period's command change (``1 / (1 - rho)``)."""
         return 1.0 / (1.0 - self.rho)
 
-    def velocities(self, commands: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """The velocities ``w_0..w_N`` ``(N + 1, 2)`` when ``commands`` ``(N, 2)`` follow ``velocity``."""
+    def reached(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> np.ndarray:
+        """``(N, 2)``: for ``tau = 0``, the velocity the base has at the end of each period when ``commands`` ``(N, 2)``
+        are held in blocks of ``hold`` periods from ``velocity`` (each block ramped over its length,
+        :func:`block_ramp`); the commands themselves for ``hold = 1`` and for a lag (the model's commands)."""
+        commands = np.asarray(commands, dtype=float).reshape(-1, 2)
+        if hold <= 1 or self.rho != 0.0:
+            return commands
+        ramp, start = block_ramp(commands.shape[0], int(hold))
+        return ramp @ commands + start[:, None] * np.asarray(velocity, dtype=float).reshape(1, 2)
+
+    def velocities(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> np.ndarray:
+        """The velocities ``w_0..w_N`` ``(N + 1, 2)`` when ``commands`` ``(N, 2)``, held in blocks of ``hold`` periods,
+        follow ``velocity``."""
         commands = np.asarray(commands, dtype=float).reshape(-1, 2)
         start = np.asarray(velocity, dtype=float).reshape(1, 2)
         rho = self.rho
         if rho == 0.0:
-            return np.vstack((start, commands))
+            return np.vstack((start, self.reached(commands, velocity, hold)))
         # w_{k+1} = rho w_k + (1 - rho) u_k, a first-order filter of the commands.
         after = lfilter([1.0 - rho], [1.0, -rho], commands, axis=0, zi=rho * start)[0]
         return np.vstack((start, after))
 
-    def rollout(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Poses ``(N + 1, 3)`` and velocities ``(N + 1, 2)`` of a plan from the base origin."""
+    def rollout(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Poses ``(N + 1, 3)`` and velocities ``(N + 1, 2)`` of a plan from the base origin, its commands held in
+        blocks of ``hold`` periods."""
         commands = np.asarray(commands, dtype=float).reshape(-1, 2)
-        velocities = self.velocities(commands, velocity)
-        means = commands + self.beta * (velocities[:-1] - commands)
+        velocities = self.velocities(commands, velocity, hold)
+        # Without a lag the base ramps within each period to the velocity it reaches at its end.
+        ends = velocities[1:] if self.rho == 0.0 else commands
+        means = ends + self.beta * (velocities[:-1] - ends)
         return unicycle_rollout(Pose2D(), means, self.dt), velocities
 
     def coast(self, pose: np.ndarray, velocity: np.ndarray) -> np.ndarray:
@@ -195,10 +239,12 @@ class BaseModel(NamedTuple):
         drift = self.time_constant * velocity[0]
         return np.array([pose[0] + drift * math.cos(pose[2]), pose[1] + drift * math.sin(pose[2]), pose[2]])
 
-    def knot_poses(self, commands: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def knot_poses(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The poses a plan's clearance is checked at ``(K, 3)``: the end of every period and, for a
-        lag, where the base drifts to; with the rollout's poses ``(N + 1, 3)`` and velocities."""
-        poses, velocities = self.rollout(commands, velocity)
+        lag, where the base drifts to; with the rollout's poses ``(N + 1, 3)`` and velocities (commands held in
+        blocks of ``hold`` periods)."""
+        poses, velocities = self.rollout(commands, velocity, hold)
         knots = poses[1:]
         if self.time_constant > 0.0:
             knots = np.vstack((knots, self.coast(poses[-1], velocities[-1])))

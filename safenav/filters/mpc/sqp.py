@@ -57,7 +57,7 @@ import numpy as np
 from safenav.filters.deadline import StepClock
 from safenav.filters.kernels import plain
 from safenav.filters.mpc.nlp import PlanModel
-from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout
+from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout, block_ramp
 from safenav.filters.qp import QPBackend, QPData
 
 __all__ = ["EXTRAPOLATION_WINDOW", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver",
@@ -189,6 +189,10 @@ class _LayoutData(NamedTuple):
     """The model whose variables are the knots' commands, or every period's for a late call's blocks."""
     blocks: bool
     """Whether ``model`` is the every-period one and the derivatives are summed per block (``hold >= 2``)."""
+    ramp: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    """For blocks without a lag, ``(R, r, s)``: the model is evaluated at the velocities the base reaches,
+    ``R u + r w_0`` (:func:`~safenav.filters.mpc.plan.block_ramp`), period ``p`` of block ``b`` at ``s_p U_b +
+    (1 - s_p) U_(b-1)``; its derivatives are summed per block with those weights."""
 
 
 def _most_missed_per_point(missed: np.ndarray, linearised: np.ndarray) -> np.ndarray:
@@ -306,7 +310,11 @@ class DirectSQP:
         # so that a late call builds nothing.
         blocks = not layout.identity and layout.hold > 1
         model = self.model if layout.identity or blocks else PlanModel(layout.periods, self.model.model, layout)
-        data = _LayoutData(hessian, interpolation.T @ weights, differences, model, blocks)
+        ramp = None
+        if blocks and model.model.rho == 0.0:
+            matrix, start = block_ramp(layout.periods, layout.hold)
+            ramp = (matrix, start, np.diagonal(matrix).copy())
+        data = _LayoutData(hessian, interpolation.T @ weights, differences, model, blocks, ramp)
         self._layouts[key] = data   # a handful per filter: one per call period seen
         return data
 
@@ -409,7 +417,16 @@ class DirectSQP:
             if steps.late():
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True,
                                   longest_step=steps.finished())
-            if data.blocks:
+            if data.ramp is not None:
+                matrix, start, share = data.ramp
+                reached = matrix @ layout.expand(knots.reshape(n, 2)) + start[:, None] * nlp.velocity[None, :]
+                poses, jacobian = data.model.evaluate(reached, nlp.velocity)
+                jacobian = jacobian.reshape(n_knots, 3, -1, 2)
+                # A period depends on its block's command by its share and on the previous block's by the rest.
+                own = np.add.reduceat(jacobian * share[:, None], layout.knots, axis=2)
+                own[:, :, :-1] += np.add.reduceat(jacobian * (1.0 - share)[:, None], layout.knots, axis=2)[:, :, 1:]
+                jacobian = own
+            elif data.blocks:
                 poses, jacobian = data.model.evaluate(layout.expand(knots.reshape(n, 2)), nlp.velocity)
                 jacobian = np.add.reduceat(jacobian.reshape(n_knots, 3, -1, 2), layout.knots, axis=2)
             else:
