@@ -228,7 +228,7 @@ class MPCSafetyFilter(SafetyFilter):
     block's length ``T = m dt``) and reports ``LATE``. Without a lag the model ramps the velocity
     to each block's command over the whole block, as a base that reaches each command within the
     call period does (:func:`~safenav.filters.mpc.plan.block_ramp`); it is then exact for a base
-    ramping at its limits, and ``e_act`` bounds every base of the guarantee.
+    ramping linearly over the call period, and ``e_act`` bounds every base of the guarantee.
 
     **Guarantee.** If the world is static, every obstacle at least :attr:`smallest_obstacle` wide is
     seen within ``2 noise_std`` before the body comes within ``margin`` of it (see the CBF

@@ -23,9 +23,10 @@ velocity at its start by what the acceleration limits allow in ``T``; a base tha
 command within the period (``tau = 0``) then reaches it by the end of ``T``, not of the block's first
 ``dt``. The model ramps it over the whole block: at the end of the block's ``j``-th period
 (``j = 1..m``) the velocity is ``w + (j / m) (U - w)``, from the velocity ``w`` the block starts at
-(:func:`block_ramp`). That is the base ramping at its limits exactly, and the one from which any
-velocity between ``w`` and ``U`` strays least (half the change times ``T``, the actuator error's
-bound). A lag's model is the same whatever the call period.
+(:func:`block_ramp`). That is exactly a base ramping linearly over the call period (at its limits
+when the change is the largest they allow), and no velocity between ``w`` and ``U`` strays from it
+by more than half the change times ``T`` (the actuator error's bound). A lag's model is the same
+whatever the call period.
 
 The body is one disk or several (:class:`~safenav.filters.body.BodyModel`); a disk whose
 centre sits at ``c`` in the base frame is at ``p_k + R(yaw_k) c`` at knot ``k``.
