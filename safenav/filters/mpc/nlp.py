@@ -72,7 +72,7 @@ def _knot_poses(model: BaseModel, commands: casadi.SX, velocity: casadi.SX) -> c
 def _reached(model: BaseModel, commands: casadi.SX, velocity: casadi.SX, hold: int) -> casadi.SX:
     """``(2, P)``: what the model is evaluated at for ``commands`` held in blocks of ``hold`` periods: without a lag,
     the velocities the base reaches (:meth:`BaseModel.reached`); the commands otherwise."""
-    if hold <= 1 or model.rho != 0.0:
+    if not model.ramps(hold):
         return commands
     ramp, start = block_ramp(commands.shape[1], hold)
     return casadi.mtimes(commands, casadi.DM(ramp.T)) + casadi.mtimes(velocity, casadi.DM(start).T)

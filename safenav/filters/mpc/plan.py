@@ -203,12 +203,17 @@ class BaseModel(NamedTuple):
         """Largest ``|u_k - w_k|`` in units of one period's command change (``1 / (1 - rho)``)."""
         return 1.0 / (1.0 - self.rho)
 
+    def ramps(self, hold: int) -> bool:
+        """Whether commands held in blocks of ``hold`` periods are ramped over each block (:func:`block_ramp`): a late
+        call's blocks (``hold > 1``) of a base without a lag."""
+        return hold > 1 and self.rho == 0.0
+
     def reached(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> np.ndarray:
         """``(N, 2)``: for ``tau = 0``, the velocity the base has at the end of each period when ``commands`` ``(N, 2)``
         are held in blocks of ``hold`` periods from ``velocity`` (each block ramped over its length,
         :func:`block_ramp`); the commands themselves for ``hold = 1`` and for a lag (the model's commands)."""
         commands = np.asarray(commands, dtype=float).reshape(-1, 2)
-        if hold <= 1 or self.rho != 0.0:
+        if not self.ramps(hold):
             return commands
         ramp, start = block_ramp(commands.shape[0], int(hold))
         return ramp @ commands + start[:, None] * np.asarray(velocity, dtype=float).reshape(1, 2)

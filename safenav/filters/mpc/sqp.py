@@ -311,7 +311,7 @@ class DirectSQP:
         blocks = not layout.identity and layout.hold > 1
         model = self.model if layout.identity or blocks else PlanModel(layout.periods, self.model.model, layout)
         ramp = None
-        if blocks and model.model.rho == 0.0:
+        if blocks and model.model.ramps(layout.hold):
             matrix, start = block_ramp(layout.periods, layout.hold)
             ramp = (matrix, start, np.diagonal(matrix).copy())
         data = _LayoutData(hessian, interpolation.T @ weights, differences, model, blocks, ramp)
