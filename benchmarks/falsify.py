@@ -29,11 +29,15 @@ given too (``pose=``, as the ROS nodes pass it), in a frame of its own far from 
 turned so that the heading crosses the wrap at ``+-pi`` as the robot turns. With ``--latencies``
 the cells are searched again with every scan that old: taken where the robot was that long
 before the call, stamped then, and the filter told the time (``now``), as a ROS driver's scans
-arrive. With ``--call-periods`` they are searched again with the filter called every that many ``dt``, told the
-time: below 1 early calls (a node triggered by a faster lidar; each command held shorter than planned), above 1
-late calls it must plan for (an overloaded machine). The CBF and the MPC run without their compute budgets, so
-that the same seed gives the same report on any machine under any load; ``--real-time`` keeps them (a call
-preempted past its budget then brakes or follows its last plan, as on a robot, and the report depends on the load).
+arrive. With ``--sweeps`` they are searched again with a turning lidar: every beam measured at its own time within the
+lidar's ``scan_time``, from where the robot was then, the last one when the scan is taken, stamped with the first
+one's time (``stated``: ``time_increment`` given, as ``sensor_msgs/LaserScan`` defines it; ``unstated``: given as 0,
+as from a driver that does not state it, outside the guarantee). With ``--call-periods`` they are searched again with
+the filter called every that many ``dt``, told the time: below 1 early calls (a node triggered by a faster lidar; each
+command held shorter than planned), above 1 late calls it must plan for (an overloaded machine). The CBF and the MPC
+run without their compute budgets, so that the same seed gives the same report on any machine under any load;
+``--real-time`` keeps them (a call preempted past its budget then brakes or follows its last plan, as on a robot, and
+the report depends on the load).
 """
 
 from __future__ import annotations
@@ -68,7 +72,7 @@ from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, preset
 from safenav.scan import LaserScan
-from safenav.synthetic import Circle, Scene, Segment, cast
+from safenav.synthetic import Circle, Scene, Segment, cast, swept_scan
 
 __all__ = [
     "BASES",
@@ -80,6 +84,8 @@ __all__ = [
 ]
 
 BASES = ("instant", "ramp", "ramp_limit", "lag")
+#: A turning lidar's sweeps (:attr:`Episode.sweep`).
+SWEEPS = ("stated", "unstated")
 """Models of the base's velocity loop (see the module docstring)."""
 NOMINALS = ("arc", "bang_bang", "aim_nearest", "spin_then_go", "reverse", "shuttle", "script", "goal")
 """Nominal policies an episode can use (``script`` replays a fixed command sequence, ``goal`` drives
@@ -120,6 +126,10 @@ class Episode:
         settings: filter settings passed to :func:`safenav.filters.make_filter`.
         period: how long each command is really held [s] (default ``dt``); the filter is told
             the time (``now``), so a longer period is a late call it must plan for.
+        sweep: ``""``: the lidar takes every beam at once; ``"stated"``: it turns, beam ``i`` measured ``i
+            time_increment`` after the first (``time_increment = scan_time / n_beams``), the last one when the scan is
+            taken, the stamp the first one's time; ``"unstated"``: the same beams with ``time_increment`` given as 0
+            (a driver that does not state it: outside the guarantee).
         escape: wrap the filter in :class:`~safenav.filters.escape.Escape`.
         passage: ``(period, duty)``: the adversary sets the filter's ``passage`` flag (the CBF's
             narrow look-ahead) for the first ``duty`` share of every ``period`` [s]; empty: never.
@@ -145,6 +155,7 @@ class Episode:
     seed: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
     period: float | None = None
+    sweep: str = ""
     escape: bool = False
     passage: tuple[float, ...] = ()
 
@@ -374,6 +385,25 @@ def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.ra
     return template.with_ranges(ranges, stamp=stamp)
 
 
+def _swept_scan(robot: RobotSpec, scene: Scene, pose_at: Callable[[float], Pose2D], taken: float, noise: float,
+                rng: np.random.Generator, *, stated: bool) -> LaserScan:
+    """A turning lidar's scan whose last beam is measured at ``taken`` [s], each beam from where the robot was then
+    (:func:`safenav.synthetic.swept_scan`), with the range noise of :func:`_scan`; ``stated``: its
+    ``time_increment`` given (else 0, as from a driver that does not state it)."""
+    lidar = robot.lidar
+    step = lidar.scan_time / lidar.n_beams
+    first = taken - (lidar.n_beams - 1) * step
+    scan = swept_scan(lidar, scene, pose_at, first)
+    ranges = scan.ranges.copy()
+    finite = np.isfinite(ranges)
+    if noise > 0.0:
+        ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
+    ranges[ranges > lidar.range_max] = math.inf
+    ranges[(ranges < lidar.range_min) & finite] = -math.inf
+    template = scan if stated else scan.replace(time_increment=0.0)
+    return template.with_ranges(ranges, stamp=first)
+
+
 def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
     """Distance from a disk of ``radius`` at each of ``centres`` ``(K, 2)`` to the nearest item [m]."""
     best = np.full(centres.shape[0], math.inf)
@@ -501,7 +531,10 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     for step in range(steps):
         t = step * period
         taken = t - episode.latency
-        scan = _scan(robot, scene, pose if taken >= t else pose_at(taken), episode.noise, rng, taken)
+        if episode.sweep:
+            scan = _swept_scan(robot, scene, pose_at, taken, episode.noise, rng, stated=episode.sweep == "stated")
+        else:
+            scan = _scan(robot, scene, pose if taken >= t else pose_at(taken), episode.noise, rng, taken)
         u_nom = policy(t, scan, pose)
         if episode.passage and not episode.escape:
             passage_period, duty = episode.passage
@@ -524,7 +557,7 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         command = np.asarray(result.u, dtype=float)
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
-        if episode.latency > 0.0:
+        if episode.latency > 0.0 or episode.sweep:
             path_poses.extend(Pose2D(*row) for row in poses[:-1])
             path_velocities.extend(profile[:SUBSTEPS])
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
@@ -590,7 +623,7 @@ def _thick(start: tuple[float, float], end: tuple[float, float], normal: float
 def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base: str, dt: float, give_velocity: bool,
            geometry: str | Sequence[str], nominal: str | Sequence[str], margin: float,
            settings: dict[str, Any] | None = None, give_pose: bool = False, latency: float = 0.0,
-           call_period: float = 1.0) -> Episode:
+           call_period: float = 1.0, sweep: str = "") -> Episode:
     """Map a search vector (any reals; folded into [0, 1]) to an episode starting clear of every obstacle.
 
     ``geometry`` and ``nominal`` are either one name, or several among which coordinates 16
@@ -599,7 +632,7 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
     heading starts within
     0.3 rad of the wrap at ``+-pi`` (coordinates 9-11, which also shape the door). ``latency``: every scan's age
     [s] (:attr:`Episode.latency`). ``call_period``: the filter is called every that many ``dt``
-    (:attr:`Episode.period`).
+    (:attr:`Episode.period`). ``sweep``: :attr:`Episode.sweep`.
     """
     spec = robot_spec(robot)
     R = spec.radius
@@ -681,7 +714,7 @@ def decode(x: np.ndarray, *, robot: str | dict[str, Any], filter_name: str, base
         odometry_frame = (2000.0 * (u[9] - 0.5), 2000.0 * (u[11] - 0.5),
                           (math.pi - 0.3 * u[10]) * (1.0 if u[10] > 0.5 else -1.0))
     return Episode(robot=robot, filter=filter_name, base=base, dt=dt, give_velocity=give_velocity,
-                   odometry_frame=odometry_frame, latency=latency,
+                   odometry_frame=odometry_frame, latency=latency, sweep=sweep,
                    period=None if call_period == 1.0 else call_period * dt,
                    circles=tuple(circles), segments=tuple(segments), nominal=nominal, params=params,
                    velocity=start_velocity, duration=4.0, noise=spec.lidar.noise_std,
@@ -858,11 +891,11 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
            mpc_references: Sequence[str | None] = (None,), mpc_lookahead: float = 0.0,
            min_obstacle_width: float | None = None, narrow_body: str | None = None,
            odometry: bool = False, latencies: Sequence[float] = (), real_time: bool = False,
-           call_periods: Sequence[float] = ()) -> list[dict[str, Any]]:
+           call_periods: Sequence[float] = (), sweeps: Sequence[str] = ()) -> list[dict[str, Any]]:
     """One search per robot, filter (and what the MPC tracks), body, period and base (with and without
     odometry for the instant base; with ``odometry`` each cell given the velocity again with the odometry pose
     too, after all the others; then every cell again with each of ``latencies`` [s] as the scans' age; then every
-    cell again called every ``call_periods`` times ``dt``); the
+    cell again called every ``call_periods`` times ``dt``, then with each of ``sweeps``, :attr:`Episode.sweep`); the
     geometry and the nominal are searched inside each. With
     ``min_obstacle_width`` every CBF and MPC cell is told it (its poles are then from that wide); with
     ``narrow_body`` every CBF and MPC cell of a disk body on a robot with a footprint gets it (CBFConfig and
@@ -893,6 +926,7 @@ def _cells(robots: Sequence[str | dict[str, Any]], filters: Sequence[str], bases
     cells += [dict(cell, latency=float(latency)) for latency in latencies if latency > 0.0 for cell in list(cells)]
     cells += [dict(cell, call_period=float(factor)) for factor in call_periods if factor != 1.0
               for cell in list(cells)]
+    cells += [dict(cell, sweep=sweep) for sweep in sweeps if sweep for cell in list(cells)]
     return cells
 
 
@@ -925,7 +959,8 @@ def _cell_key(cell: dict[str, Any]) -> str:
                      *([f"narrow-{settings['narrow_body']}"] if "narrow_body" in settings else []),
                      *(["pose"] if cell.get("give_pose") else []),
                      *([f"latency-{cell['latency']:g}"] if cell.get("latency") else []),
-                     *([f"called-every-{cell['call_period']:g}dt"] if cell.get("call_period", 1.0) != 1.0 else [])))
+                     *([f"called-every-{cell['call_period']:g}dt"] if cell.get("call_period", 1.0) != 1.0 else []),
+                     *([f"sweep-{cell['sweep']}"] if cell.get("sweep") else [])))
 
 
 def _cell_line(index: int, cells: Sequence[dict[str, Any]], found: Sequence[Found]) -> str:
@@ -991,6 +1026,10 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                         metavar="F", help="also search every cell with the filter called every F dt, told the time "
                                           "(F < 1: early calls, each command held shorter than planned; F > 1: late "
                                           "calls it must plan for)")
+    parser.add_argument("--sweeps", nargs="+", default=[], choices=SWEEPS,
+                        help="also search every cell with a turning lidar, each beam measured at its own time from "
+                             "where the robot was then: 'stated' (time_increment given, as sensor_msgs/LaserScan "
+                             "defines it), 'unstated' (given as 0: outside the guarantee)")
     add_real_time_option(parser)
     parser.add_argument("--optimiser", default="cma", choices=("cma", "random"))
     parser.add_argument("--worst", type=int, default=10, help="worst cases to print")
@@ -1016,7 +1055,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0 if not outcome.violated else 1
     cells = _cells([*args.robots, *load_robots(args.robot_spec)], args.filters, args.bases, args.dts, args.geometries,
                    args.nominals, args.bodies, args.mpc_reference, args.mpc_lookahead, args.min_obstacle_width,
-                   args.narrow_body, args.odometry, args.latencies, args.real_time, args.call_periods)
+                   args.narrow_body, args.odometry, args.latencies, args.real_time, args.call_periods, args.sweeps)
     per_cell = episodes_per_cell(args.episodes, len(cells))
     settings = {**sweep_settings(args), "progress": False, "ship": SHIPPED}
     start = time.perf_counter()

@@ -230,6 +230,9 @@ class LidarSpec:
     def scan(self, ranges: Any = None, *, stamp: float | None = None) -> LaserScan:
         """A :class:`~safenav.scan.LaserScan` of this lidar, on its mount (given) and with its frame id.
 
+        Every beam is taken at once (``time_increment`` 0), as the simulators cast them; a real lidar's driver
+        gives its own (:func:`safenav.synthetic.swept_scan` casts a turning one).
+
         Args:
             ranges: the readings [m]; ``None`` gives an all-``+inf`` scan (nothing in range).
             stamp: acquisition time [s].
@@ -240,7 +243,7 @@ class LidarSpec:
             angle_min=self.angle_min,
             angle_max=self.angle_max,
             angle_increment=self.angle_increment,
-            time_increment=self.scan_time / self.n_beams,
+            time_increment=0.0,
             scan_time=self.scan_time,
             range_min=self.range_min,
             range_max=self.range_max,

@@ -600,6 +600,9 @@ class LaserScan:
         if derived_from_ranges:
             for name in _RANGE_CACHES:
                 state.pop(name, None)
+            state.pop("_sweep_motion", None)    # new readings: measured on another sweep
+        if "mount" in values or "_sweep_motion" in values or derived_from_ranges:
+            state.pop("_sweep_error", None)
         state.update(values)
         copy.__dict__.update(state)
         return copy
@@ -738,12 +741,75 @@ class LaserScan:
         return self.beam_points(index, r)
 
     def beam_points(self, index: np.ndarray, ranges: np.ndarray) -> np.ndarray:
-        """The base-frame points ``(N, 2)`` [m] at ``ranges`` [m] along the beams ``index``."""
+        """The base-frame points ``(N, 2)`` [m] at ``ranges`` [m] along the beams ``index``, each from where the lidar
+        was when it measured that beam (:attr:`sweep_motion`)."""
         geometry = self.geometry
         out = np.empty((len(index), 2))
-        out[:, 0] = self.mount.x + ranges * geometry.cos_base[index]
-        out[:, 1] = self.mount.y + ranges * geometry.sin_base[index]
+        sweep = self.sweep_motion
+        if sweep is None:
+            out[:, 0] = self.mount.x + ranges * geometry.cos_base[index]
+            out[:, 1] = self.mount.y + ranges * geometry.sin_base[index]
+            return out
+        mount = self.mount
+        c, s = math.cos(mount.yaw), math.sin(mount.yaw)
+        dx, dy = sweep[index, 0], sweep[index, 1]
+        direction = geometry.base_angles[index] + sweep[index, 2]
+        out[:, 0] = mount.x + c * dx - s * dy + ranges * np.cos(direction)
+        out[:, 1] = mount.y + s * dx + c * dy + ranges * np.sin(direction)
         return out
+
+    @property
+    def beam_times(self) -> np.ndarray:
+        """When each beam was measured, after the stamp [s] (``sensor_msgs/LaserScan``: the stamp is the first beam's
+        time, beam ``i`` of the message ``i * time_increment`` after it; a clockwise message's first beam is the
+        last one stored). All 0 when ``time_increment`` is 0 (every beam at once)."""
+        n, step = self.n_beams, self.time_increment
+        if step == 0.0:
+            return np.zeros(n)
+        first = 0 if step > 0.0 else n - 1
+        return (np.arange(n) - first) * step
+
+    @property
+    def sweep_motion(self) -> np.ndarray | None:
+        """``(n_beams, 3)`` where the lidar was when it measured each beam, in the lidar frame at :attr:`mount`
+        [m, m, rad], or ``None``: every beam from :attr:`mount`. A filter sets it when it moves a scan of a turning
+        lidar into the current base frame (:meth:`with_sweep_motion`); the points of :meth:`beam_points` use it."""
+        return self.__dict__.get("_sweep_motion")
+
+    @property
+    def sweep_error(self) -> tuple[float, float]:
+        """How far [m] and how much [rad] the lidar was, at any beam, from :attr:`mount` (:attr:`sweep_motion`), as a
+        bound ``(e_translation, e_rotation)`` on a base-frame point ``d`` from the base origin:
+        ``e_translation + d e_rotation`` (the turn is about the lidar, ``|mount|`` from the base origin);
+        ``(0, 0)`` without a sweep motion."""
+        sweep = self.sweep_motion
+        if sweep is None:
+            return 0.0, 0.0
+        known = self.__dict__.get("_sweep_error")
+        if known is None:
+            turn = float(np.max(np.abs(sweep[:, 2])))
+            known = (float(np.max(np.hypot(sweep[:, 0], sweep[:, 1]))) + math.hypot(self.mount.x, self.mount.y) * turn,
+                     turn)
+            self.__dict__["_sweep_error"] = known
+        return known
+
+    def with_sweep_motion(self, motion: np.ndarray | None) -> LaserScan:
+        """This scan with each beam measured from the lidar pose ``motion[i]`` ``(n_beams, 3)`` in the lidar frame at
+        :attr:`mount` [m, m, rad] (:attr:`sweep_motion`; ``None``: every beam from the mount). The readings are
+        shared; a new mount (:meth:`with_mount`) keeps the motion relative to it; new readings (:meth:`with_ranges`)
+        and :meth:`replace` drop it.
+
+        Raises:
+            InvalidScan: ``motion`` is not ``(n_beams, 3)`` finite numbers.
+        """
+        if motion is not None:
+            motion = np.array(motion, dtype=float)
+            if motion.shape != (self.n_beams, 3) or not np.isfinite(motion).all():
+                problem = f"shape {motion.shape}" if motion.shape != (self.n_beams, 3) else "non-finite values"
+                raise InvalidScan(f"sweep motion must be ({self.n_beams}, 3) finite numbers (x [m], y [m], yaw [rad] "
+                                  f"of the lidar at each beam), got {problem}")
+            motion.flags.writeable = False
+        return self._copy_with(_sweep_motion=motion)
 
     def sector(self, lo: float, hi: float) -> SectorReading:
         """The nearest reading in the base-frame sector from ``lo`` counter-clockwise to ``hi`` [rad].

@@ -6,6 +6,11 @@ into a :class:`~safenav.scan.LaserScan` of a robot's lidar at a given pose, with
 REP-117 values: ``+inf`` when nothing is within ``range_max`` and ``-inf`` when
 the first hit is closer than ``range_min``.
 
+A real lidar turns: each beam is measured at its own time within the sweep (``time_increment``
+apart, the stamp being the first beam's, as ``sensor_msgs/LaserScan`` defines it), from wherever
+the robot is then. :func:`swept_scan` casts such a scan along a path; :func:`synthetic_scan` casts
+every beam at once (``time_increment`` 0), as the simulators do.
+
 Filter and policy tests use it to build exact inputs::
 
     from safenav import preset
@@ -17,7 +22,7 @@ Filter and policy tests use it to build exact inputs::
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,7 +32,7 @@ from safenav.geometry import Pose2D
 from safenav.robot import LidarSpec, RobotSpec
 from safenav.scan import LaserScan
 
-__all__ = ["Circle", "Scene", "Segment", "box", "cast", "synthetic_scan", "wall"]
+__all__ = ["Circle", "Scene", "Segment", "box", "cast", "swept_scan", "synthetic_scan", "wall"]
 
 
 @dataclass(frozen=True)
@@ -112,27 +117,37 @@ def box(center: tuple[float, float], size: tuple[float, float], yaw: float = 0.0
     return tuple(Segment(corners[i], corners[(i + 1) % 4]) for i in range(4))
 
 
-def cast(origin: tuple[float, float], angles: np.ndarray, scene: Scene) -> np.ndarray:
-    """Distance along each ray from ``origin`` [m] at world ``angles`` [rad] to the first item (inf if none)."""
+def cast(origin: tuple[float, float] | np.ndarray, angles: np.ndarray, scene: Scene) -> np.ndarray:
+    """Distance along each ray from ``origin`` [m] at world ``angles`` [rad] to the first item (inf if none).
+
+    ``origin``: one point for every ray, or ``(N, 2)`` one per ray.
+    """
     angles = np.asarray(angles, dtype=float)
     d = np.column_stack((np.cos(angles), np.sin(angles)))
     o = np.asarray(origin, dtype=float)
+    per_ray = o.ndim == 2
     best = np.full(angles.size, math.inf)
     seg = scene._segment_array
     if seg.size:
-        a = seg[:, :2] - o
+        # (rays or 1, segments) from each origin to each segment's start
+        a = seg[None, :, :2] - (o[:, None, :] if per_ray else o[None, None, :])
         e = seg[:, 2:] - seg[:, :2]
         denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            t = (a[None, :, 0] * e[None, :, 1] - a[None, :, 1] * e[None, :, 0]) / denom
-            u = (a[None, :, 0] * d[:, None, 1] - a[None, :, 1] * d[:, None, 0]) / denom
+            t = (a[..., 0] * e[None, :, 1] - a[..., 1] * e[None, :, 0]) / denom
+            u = (a[..., 0] * d[:, None, 1] - a[..., 1] * d[:, None, 0]) / denom
         hit = (np.abs(denom) > 1e-15) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
         best = np.minimum(best, np.min(np.where(hit, t, math.inf), axis=1))
     circ = scene._circle_array
     if circ.size:
-        oc = circ[:, :2] - o
-        proj = d @ oc.T
-        disc = proj**2 - (np.einsum("ij,ij->i", oc, oc) - circ[:, 2] ** 2)[None, :]
+        if per_ray:
+            oc = circ[None, :, :2] - o[:, None, :]                                       # (rays, circles, 2)
+            proj = np.einsum("rj,rcj->rc", d, oc)
+            disc = proj**2 - (np.einsum("rcj,rcj->rc", oc, oc) - circ[None, :, 2] ** 2)
+        else:
+            oc = circ[:, :2] - o
+            proj = d @ oc.T
+            disc = proj**2 - (np.einsum("ij,ij->i", oc, oc) - circ[:, 2] ** 2)[None, :]
         root = np.sqrt(np.maximum(disc, 0.0))
         near, far = proj - root, proj + root
         t = np.where(near >= 0.0, near, np.where(far >= 0.0, 0.0, math.inf))
@@ -168,6 +183,35 @@ def synthetic_scan(
             raise InvalidConfig("synthetic_scan: noise_std > 0 needs rng=np.random.default_rng(seed)")
         finite = np.isfinite(ranges)
         ranges[finite] += rng.normal(0.0, noise_std, int(finite.sum()))
+    return template.with_ranges(_rep117(ranges, lidar), stamp=stamp)
+
+
+def _rep117(ranges: np.ndarray, lidar: LidarSpec) -> np.ndarray:
+    """Exact distances as a lidar reports them: ``+inf`` beyond ``range_max``, ``-inf`` nearer than ``range_min``."""
     ranges[ranges > lidar.range_max] = math.inf
     ranges[ranges < lidar.range_min] = -math.inf
-    return template.with_ranges(ranges, stamp=stamp)
+    return ranges
+
+
+def swept_scan(robot: RobotSpec | LidarSpec, scene: Scene, pose_at: Callable[[float], Pose2D], stamp: float, *,
+               sweep_time: float | None = None) -> LaserScan:
+    """The scan a turning lidar takes while the base moves: beam ``i`` cast from the base pose at its own time.
+
+    As ``sensor_msgs/LaserScan`` defines it, ``stamp`` is the time of the first beam and beam ``i`` is
+    measured ``i * time_increment`` after it; here ``time_increment = sweep_time / n_beams`` (the lidar's
+    ``scan_time`` by default: it turns once per scan), so the last beam is measured one increment before the
+    sweep ends.
+
+    Args:
+        robot: the robot (its lidar is used) or a lidar alone.
+        scene: the world.
+        pose_at: the base pose in the scene frame at a time [s] -> [m, m, rad].
+        stamp: time of the first beam [s].
+        sweep_time: how long one turn of the lidar takes [s] (default: the lidar's ``scan_time``).
+    """
+    lidar = robot.lidar if isinstance(robot, RobotSpec) else robot
+    sweep = lidar.scan_time if sweep_time is None else float(sweep_time)
+    template = lidar.scan().replace(time_increment=sweep / lidar.n_beams, scan_time=sweep)
+    sensors = np.array([tuple(pose_at(stamp + time).compose(lidar.mount)) for time in template.beam_times])
+    ranges = cast(sensors[:, :2], template.angles + sensors[:, 2], scene)
+    return template.with_ranges(_rep117(ranges, lidar), stamp=stamp)

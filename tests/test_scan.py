@@ -273,6 +273,46 @@ def test_bad_scans_raise_naming_the_field(changes, exception, fragment):
     assert fragment in str(info.value)
 
 
+# ------------------------------------------------------------------ a turning lidar's sweep
+
+def test_each_beam_is_measured_after_the_stamp_as_sensor_msgs_defines_it_also_for_a_clockwise_message():
+    """The stamp is the first beam's time and beam ``i`` of the message is measured ``i * time_increment`` later;
+    a clockwise message's first beam is stored last."""
+    counter = make_scan(ranges=[1.0] * 5, time_increment=0.01)
+    np.testing.assert_allclose(counter.beam_times, [0.0, 0.01, 0.02, 0.03, 0.04])
+    clockwise = make_scan(angle_min=HALF_PI, angle_max=-HALF_PI, angle_increment=-math.pi / 4, ranges=[1.0] * 5,
+                          time_increment=0.01)
+    np.testing.assert_allclose(clockwise.beam_times, [0.04, 0.03, 0.02, 0.01, 0.0])   # message beam 0 is stored last
+    np.testing.assert_array_equal(make_scan(ranges=[1.0] * 5).beam_times, np.zeros(5))
+
+
+def test_a_sweep_motion_puts_each_point_where_the_lidar_was_for_its_beam_and_its_error_bounds_them():
+    rng = np.random.default_rng(3)
+    scan = make_scan(ranges=rng.uniform(0.5, 4.0, 5), mount=(0.2, -0.1, 0.7))
+    motion = np.column_stack((rng.uniform(-0.05, 0.05, 5), rng.uniform(-0.05, 0.05, 5), rng.uniform(-0.2, 0.2, 5)))
+    swept = scan.with_sweep_motion(motion)
+    index, ranges = swept.obstacle_beams()
+    lidar_at = [Pose2D(*scan.mount).compose(Pose2D(*motion[i])) for i in index]
+    expected = np.array([pose.to_parent(np.array([[r * math.cos(swept.angles[i]), r * math.sin(swept.angles[i])]]))[0]
+                         for pose, i, r in zip(lidar_at, index, ranges, strict=True)])
+    np.testing.assert_allclose(swept.points(), expected, atol=1e-12)
+    translation, rotation = swept.sweep_error
+    moved = np.hypot(*(swept.points() - scan.points()).T)
+    assert np.all(moved <= translation + np.hypot(*scan.points().T) * rotation + 1e-12)
+    assert scan.sweep_error == (0.0, 0.0) and scan.sweep_motion is None
+    # A new mount keeps the motion relative to it; new readings (another sweep) drop it.
+    assert swept.with_mount((0.0, 0.0, 0.0)).sweep_motion is swept.sweep_motion
+    assert swept.with_ranges([1.0] * 5).sweep_motion is None
+    assert not swept.sweep_motion.flags.writeable
+
+
+@pytest.mark.parametrize("motion", [np.zeros((4, 3)), np.full((5, 3), math.nan), [[0.0, 0.0]] * 5])
+def test_a_sweep_motion_of_the_wrong_shape_or_not_finite_is_refused(motion):
+    with pytest.raises(InvalidScan, match=r"sweep motion must be \(5, 3\) finite numbers") as caught:
+        make_scan(ranges=[1.0] * 5).with_sweep_motion(motion)
+    assert isinstance(caught.value, ValueError)
+
+
 # ------------------------------------------------------------------ clockwise scans
 
 def test_a_clockwise_scan_is_stored_counter_clockwise_with_every_beam_where_it_looked():

@@ -599,3 +599,89 @@ def nearest_per_bin(angles, keys, n_bins):
             j -= 1
         chosen[j + 1] = moving
     return chosen
+
+
+@_jit
+def sweep_poses(ages, covered, parts, ends, mount_x, mount_y, mount_yaw):
+    """perception.sweep_poses: the lidar pose of the middle beam ``(3,)`` and each beam's relative to it ``(n, 3)``
+    (``covered``, ``ends``: where each part ends, counted back from now, and the base pose there)."""
+    n = ages.size
+    x, y, cos_yaw, sin_yaw = np.zeros(n), np.zeros(n), np.ones(n), np.zeros(n)
+    count = parts.shape[0]
+    for i in range(n):
+        age = ages[i]
+        if age <= 0.0:
+            continue
+        k = 0
+        while k < count and age > covered[k] + parts[k, 0]:
+            k += 1
+        if k == count:      # older than the parts: where the oldest began
+            x[i], y[i] = ends[count, 0], ends[count, 1]
+            cos_yaw[i], sin_yaw[i] = math.cos(ends[count, 2]), math.sin(ends[count, 2])
+            continue
+        back = age - covered[k]
+        v, omega = parts[k, 1], parts[k, 2]
+        turn = omega * back
+        sin_turn, sin_half = math.sin(turn), math.sin(0.5 * turn)
+        cos_turn = 1.0 - 2.0 * sin_half * sin_half
+        if abs(omega) > 1e-12:
+            ax, ay = (-v / omega) * sin_turn, (2.0 * v / omega) * (sin_half * sin_half)
+        else:
+            ax, ay = -v * back, 0.0
+        c, s = math.cos(ends[k, 2]), math.sin(ends[k, 2])
+        x[i], y[i] = ends[k, 0] + c * ax - s * ay, ends[k, 1] + s * ax + c * ay
+        cos_yaw[i], sin_yaw[i] = c * cos_turn + s * sin_turn, s * cos_turn - c * sin_turn
+    middle = n // 2
+    c0, s0 = cos_yaw[middle], sin_yaw[middle]
+    reference = np.empty(3)
+    reference[0] = x[middle] + c0 * mount_x - s0 * mount_y
+    reference[1] = y[middle] + s0 * mount_x + c0 * mount_y
+    yaw = math.atan2(s0, c0) + mount_yaw
+    reference[2] = (yaw + math.pi) % (2.0 * math.pi) - math.pi      # geometry.wrap_angle
+    cr, sr = math.cos(reference[2]), math.sin(reference[2])
+    relative = np.empty((n, 3))
+    for i in range(n):
+        dx = x[i] + cos_yaw[i] * mount_x - sin_yaw[i] * mount_y - reference[0]
+        dy = y[i] + sin_yaw[i] * mount_x + cos_yaw[i] * mount_y - reference[1]
+        relative[i, 0] = cr * dx + sr * dy
+        relative[i, 1] = -sr * dx + cr * dy
+        relative[i, 2] = math.atan2(c0 * sin_yaw[i] - s0 * cos_yaw[i], c0 * cos_yaw[i] + s0 * sin_yaw[i])
+    return reference, relative
+
+
+@_jit
+def sweep_shift(points, motion, mount_x, mount_y, mount_yaw, angle_min, increment, rounds):
+    """perception.sweep_shift: each point's map to where a lidar at the mount sees it as the beam that looks at it
+    saw it, as ``(cos, sin, shift)`` (``(N,)``, ``(N,)``, ``(N, 2)``)."""
+    count, n = points.shape[0], motion.shape[0]
+    two_pi = 2.0 * math.pi
+    cm, sm = math.cos(mount_yaw), math.sin(mount_yaw)
+    turn_cos, turn_sin = np.cos(motion[:, 2]), np.sin(motion[:, 2])
+    cos_out, sin_out, shift = np.empty(count), np.empty(count), np.empty((count, 2))
+    unseen = np.zeros(count, dtype=np.bool_)
+    for i in range(count):
+        local_x = cm * (points[i, 0] - mount_x) + sm * (points[i, 1] - mount_y)
+        local_y = -sm * (points[i, 0] - mount_x) + cm * (points[i, 1] - mount_y)
+        x, y = local_x, local_y
+        beam = -1
+        for round_index in range(rounds + 1):
+            offset = (math.atan2(y, x) - angle_min + 0.5 * increment) % two_pi - 0.5 * increment
+            index = math.floor(offset / increment + 0.5)
+            if index > n - 1:
+                index = n - 1 if offset - (n - 1) * increment < two_pi - offset else 0
+            if int(index) == beam:
+                break
+            if round_index == rounds:
+                unseen[i] = True
+                break
+            beam = int(index)
+            dx, dy, c, s = motion[beam, 0], motion[beam, 1], turn_cos[beam], turn_sin[beam]
+            x = c * (local_x - dx) + s * (local_y - dy)
+            y = -s * (local_x - dx) + c * (local_y - dy)
+        dx, dy, c, s = motion[beam, 0], motion[beam, 1], turn_cos[beam], -turn_sin[beam]
+        shift_x = -(c * dx - s * dy)
+        shift_y = -(s * dx + c * dy)
+        cos_out[i], sin_out[i] = c, s
+        shift[i, 0] = mount_x - (c * mount_x - s * mount_y) + (cm * shift_x - sm * shift_y)
+        shift[i, 1] = mount_y - (s * mount_x + c * mount_y) + (sm * shift_x + cm * shift_y)
+    return cos_out, sin_out, shift, unseen

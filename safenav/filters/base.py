@@ -53,7 +53,10 @@ from safenav.filters.perception import (
     horizon_points,
     motion_spread,
     resolved_range,
+    seam_gap,
     shadow_points,
+    sweep_poses,
+    sweep_step,
     unknown_region,
 )
 from safenav.geometry import Pose2D, unicycle_step
@@ -867,7 +870,12 @@ class SafetyFilter(abc.ABC):
                      ) -> tuple[tuple[LaserScan, ...], tuple[float, float]]:
         """The scans moved into the current base frame by the motion since each was taken (``compensate_latency``),
         and the bound of that motion's error (A5, the largest over the scans): see :meth:`latent_motion`.
-        ``pending``: the period since the previous call, not yet in the history (a look before the call)."""
+        ``pending``: the period since the previous call, not yet in the history (a look before the call).
+
+        A scan of a turning lidar (``time_increment`` not 0) is moved beam by beam: each beam by the motion since
+        its own time (:attr:`~safenav.scan.LaserScan.beam_times`, after the stamp), as the lidar pose of its middle
+        beam (the mount) and each beam's pose relative to it (:attr:`~safenav.scan.LaserScan.sweep_motion`); the
+        error bound is that of its oldest beam, the first."""
         if not self.compensate_latency:
             return scans, (0.0, 0.0)
         moved, error = [], (0.0, 0.0)
@@ -875,8 +883,12 @@ class SafetyFilter(abc.ABC):
             if age is None or age <= 0.0:
                 moved.append(scan)
                 continue
-            motion, (translation, rotation) = self.latent_motion(age, velocity, pending)
-            moved.append(scan.replace(mount=motion.inverse().compose(scan.mount)))
+            parts = self._latent_parts(age, velocity, pending)
+            motion, (translation, rotation) = _composed(parts)
+            if scan.time_increment == 0.0 or scan.n_beams == 1:
+                moved.append(scan.with_mount(motion.inverse().compose(scan.mount)))
+            else:
+                moved.append(_swept(scan, parts, np.maximum(age - scan.beam_times, 0.0), self._kernels))
             error = (max(error[0], translation), max(error[1], rotation))
         return tuple(moved), error
 
@@ -893,28 +905,29 @@ class SafetyFilter(abc.ABC):
         first call, or past the kept periods, the base is taken to have held ``velocity`` (at rest without
         one), as a scan taken before the filter started was.
         """
+        return _composed(self._latent_parts(age, velocity, pending))
+
+    def _latent_parts(self, age: float, velocity: np.ndarray | None, pending: Period | None
+                      ) -> list[tuple[float, float, float, tuple[float, float]]]:
+        """The parts of the last ``age`` [s] as :meth:`latent_motion` walks them, the latest first: each part's
+        length [s], the velocity held over it [m/s, rad/s] and the bound of its motion's error [m, rad]."""
         periods = [*self._returned, *([pending] if pending is not None else [])]
-        parts: list[tuple[Pose2D, tuple[float, float]]] = []
+        parts: list[tuple[float, float, float, tuple[float, float]]] = []
         left = float(age)
         for period in reversed(periods):
             if left <= 0.0:
                 break
             part = min(float(period.held), left)
             if period.start is not None and period.end is not None:
-                parts.append(dead_reckoning(period.start, period.end, part))
+                (v0, w0), (v1, w1) = (float(value) for value in period.start), (float(value) for value in period.end)
+                parts.append((part, 0.5 * (v0 + v1), 0.5 * (w0 + w1), dead_reckoning(period.start, period.end,
+                                                                                      part)[1]))
             else:
-                parts.append((unicycle_step(Pose2D(), float(period.command[0]), float(period.command[1]), part),
-                               (0.0, 0.0)))
+                parts.append((part, float(period.command[0]), float(period.command[1]), (0.0, 0.0)))
             left -= part
         if left > 0.0 and velocity is not None:
-            parts.append((unicycle_step(Pose2D(), float(velocity[0]), float(velocity[1]), left), (0.0, 0.0)))
-        motion, translation, rotation, drag = Pose2D(), 0.0, 0.0, 0.0
-        for arc, (arc_translation, arc_rotation) in reversed(parts):     # the oldest part first
-            drag += rotation * math.hypot(arc.x, arc.y)
-            translation += arc_translation
-            rotation += arc_rotation
-            motion = motion.compose(arc)
-        return motion, (translation + drag, rotation)
+            parts.append((left, float(velocity[0]), float(velocity[1]), (0.0, 0.0)))
+        return parts
 
     def current_scans(self, scan: LaserScan | Sequence[LaserScan], *, velocity: Any = None,
                       scan_age: float | Sequence[float] | None = None, now: float | None = None
@@ -1032,14 +1045,16 @@ class SafetyFilter(abc.ABC):
         frontier = unknown_region(scans, self.body, self.max_gap, self.side_tolerance)
         if self.memory is None:
             return View(scans, seen, seen_uncertainty, current.shape[0], frontier, horizon.shape[0])
-        if frontier.complete:
+        if frontier.complete and not any(seam_gap(scan) > 0.0 for scan in scans):
             # Every direction round the body is seen now: a remembered point is either seen again or
-            # occluded, and an occluded point cannot be the first to come within the margin.
+            # occluded, and an occluded point cannot be the first to come within the margin. (Not where a turning
+            # lidar's full turn left a gap at its seam, the base turning against its spin: there the memory holds
+            # what the scan did not look at.)
             recalled, uncertainty = np.empty((0, 2)), np.empty(0)
         else:
             noise = max(scan_noise(self.robot), 0.0)
-            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01, scan_error=error,
-                                                       compiled=self._kernels)
+            recalled, uncertainty = self.memory.recall(scans, tolerance=2.0 * noise + 0.01,
+                                                       scan_error=_placed(scans, error), compiled=self._kernels)
         self._recalled = (recalled, uncertainty)
         points = np.vstack((seen, recalled)) if recalled.shape[0] else seen
         return View(scans, points, np.concatenate((seen_uncertainty, uncertainty)), current.shape[0],
@@ -1062,13 +1077,15 @@ class SafetyFilter(abc.ABC):
 
     def _remember(self, view: View, error: tuple[float, float] = (0.0, 0.0)) -> None:
         """Keep the call's points (with their uncertainty) and, for a robot with a side no lidar sees, its scans as
-        space seen free; not a scan moved by the measured velocities, whose place is uncertain (``error``)."""
+        space seen free; not a scan moved by the measured velocities, whose place is uncertain (``error``), nor one
+        whose beams were measured from several places (a turning lidar's on a moving base)."""
         self._last_view = view
         if self.memory is not None:
             recalled, uncertainty = self._recalled
             self.memory.store(view.points[: view.n_current], recalled, uncertainty,
                               view.uncertainty[: view.n_current])
-        if self.seen_free is not None and (view.frontier.forward or view.frontier.backward) and not any(error):
+        if (self.seen_free is not None and (view.frontier.forward or view.frontier.backward) and not any(error)
+                and not _swept_in_place(view.scans)):
             self.seen_free.store(view.scans, max(scan_noise(self.robot), 0.0))
 
     @staticmethod
@@ -1094,6 +1111,42 @@ class SafetyFilter(abc.ABC):
         period = details.setdefault("period", self.dt)
         u = self.robot.brake(start, period if start is not None else None)
         return FilterResult(u=u, u_nom=nominal, status=status, reason=Reason(family, detail), **details)
+
+
+def _composed(parts: list[tuple[float, float, float, tuple[float, float]]]) -> tuple[Pose2D, tuple[float, float]]:
+    """The motion over :meth:`SafetyFilter._latent_parts` (the latest first) and the bound of its error (A5)."""
+    motion, translation, rotation, drag = Pose2D(), 0.0, 0.0, 0.0
+    for part, v, omega, (arc_translation, arc_rotation) in reversed(parts):     # the oldest part first
+        arc = unicycle_step(Pose2D(), v, omega, part)
+        drag += rotation * math.hypot(arc.x, arc.y)
+        translation += arc_translation
+        rotation += arc_rotation
+        motion = motion.compose(arc)
+    return motion, (translation + drag, rotation)
+
+
+def _placed(scans: tuple[LaserScan, ...], error: tuple[float, float]) -> tuple[float, float]:
+    """How uncertain [m, rad] the scans' place in the base frame is where the memory looks at a point from the pose of
+    the beam that looks at it (:func:`~safenav.filters.perception.sweep_shift`): the motion's ``error`` plus, for a
+    turning lidar, one beam's motion (:func:`~safenav.filters.perception.sweep_step`)."""
+    steps = [sweep_step(scan) for scan in scans if scan.sweep_motion is not None]
+    if not steps:
+        return error
+    return error[0] + max(item[0] for item in steps), error[1] + max(item[1] for item in steps)
+
+
+def _swept_in_place(scans: tuple[LaserScan, ...]) -> bool:
+    """Whether a turning lidar measured the beams of some scan from more than one place (the base moved)."""
+    return any(scan.sweep_motion is not None and any(scan.sweep_error) for scan in scans)
+
+
+def _swept(scan: LaserScan, parts: list[tuple[float, float, float, tuple[float, float]]], ages: np.ndarray,
+           compiled: Any = None) -> LaserScan:
+    """``scan`` in the current base frame, each beam moved by the motion over the last ``ages[i]`` [s] (along
+    ``parts``, the latest first): on the lidar pose of its middle beam, with each beam's pose relative to it
+    (:func:`~safenav.filters.perception.sweep_poses`)."""
+    reference, relative = sweep_poses(ages, [(part, v, omega) for part, v, omega, _ in parts], scan.mount, compiled)
+    return scan.with_mount(reference).with_sweep_motion(relative)
 
 
 def scan_noise(robot: RobotSpec) -> float:

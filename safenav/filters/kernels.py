@@ -2,7 +2,7 @@
 
 The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
 numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
-installed (``pip install "safenav[fast]"``) seven pieces run as compiled loops instead
+installed (``pip install "safenav[fast]"``) nine pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
 * the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
@@ -20,7 +20,10 @@ installed (``pip install "safenav[fast]"``) seven pieces run as compiled loops i
 * the zones' test of which points lie inside the stop and slowdown polygons (``inside_polygon``,
   :func:`~safenav.filters.body.inside_polygon`, :class:`~safenav.filters.ZonesFilter`);
 * the working sets' nearest point per angular bin (``nearest_per_bin``,
-  :func:`~safenav.filters.perception.nearest_per_bin`: the MPC's point slots, the CBF's first working set).
+  :func:`~safenav.filters.perception.nearest_per_bin`: the MPC's point slots, the CBF's first working set);
+* where a turning lidar was at each beam of a scan of known age (``sweep_poses``,
+  :func:`~safenav.filters.perception.sweep_poses`), and from which beam's pose the memory looks at each remembered
+  point (``sweep_shift``, :func:`~safenav.filters.perception.sweep_shift`).
 
 The numpy code stays the reference: each kernel names the function it mirrors, and
 ``tests/filters/test_kernels.py`` checks that both give the same rows to rounding on random problems, the
@@ -80,7 +83,7 @@ def _build() -> SimpleNamespace:
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
         "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
-        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin")})
+        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift")})
     _warm(kernels)
     return kernels
 
@@ -111,6 +114,9 @@ def _warm(kernels: SimpleNamespace) -> None:
                          working, 1e-9, True)
     kernels.inside_polygon(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), points)
     kernels.nearest_per_bin(np.array([0.1, -2.0]), np.array([0.5, 0.2]), 4)
+    kernels.sweep_poses(np.array([0.1, 0.05]), np.array([0.0, 0.06]), np.array([[0.06, 0.5, 1.0]]),
+                        np.zeros((2, 3)), 0.1, 0.0, 0.0)
+    kernels.sweep_shift(points, frozen(np.zeros((3, 3))), 0.1, 0.0, 0.0, -1.0, 1.0, 3)
     # the MPC's check of a plan: two periods, one disk
     commands, bounds = np.zeros((2, 2)), np.ones((2, 2))
     kernels.plan_check(commands, commands, np.zeros(2), 0.5, 0.5, 0.05, 0.1, np.zeros((1, 2)), points, np.zeros((2, 1)),

@@ -36,7 +36,7 @@ import numpy as np
 
 from safenav.filters.body import BodyModel
 from safenav.filters.kernels import frozen, plain
-from safenav.geometry import TWO_PI, Pose2D, unicycle_step
+from safenav.geometry import TWO_PI, Pose2D, unicycle_step, wrap_angle
 from safenav.scan import _HIT, _INVALID, _NO_RETURN, LaserScan  # the reading codes as plain ints (faster)
 
 __all__ = [
@@ -133,6 +133,13 @@ def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_dista
     return np.vstack(pieces) if pieces else np.empty((0, 2))
 
 
+def _lever(scan: LaserScan) -> float:
+    """How far from the base origin [m] the lidar measured any of the scan's beams, at most: its mount's distance,
+    and for a turning lidar on a moving base the sweep's extent (:attr:`~safenav.scan.LaserScan.sweep_error`)."""
+    lever = math.hypot(scan.mount.x, scan.mount.y)
+    return lever if scan.sweep_motion is None else lever + scan.sweep_error[0]
+
+
 def beam_gap(distance: float, angle_increment: float) -> float:
     """How far apart two neighbouring beams are ``distance`` [m] from their lidar [m]: the widest obstacle that
     can stand between them there, unseen (assumption A2; :func:`resolved_range` is the inverse)."""
@@ -164,7 +171,7 @@ def horizon_points(scans: tuple[LaserScan, ...], reach: float, width: float | No
         horizon = scan.range_max
         if width is not None:
             horizon = min(horizon, resolved_range(width, scan.angle_increment))
-        if horizon - math.hypot(scan.mount.x, scan.mount.y) > reach:
+        if horizon - _lever(scan) > reach:
             continue
         beyond = scan.readings == _NO_RETURN
         if horizon < scan.range_max:
@@ -200,7 +207,7 @@ def shadow_points(scans: tuple[LaserScan, ...], reach: float, jump: float, compi
     pieces = []
     for scan in scans:
         ranges, readings = scan.ranges, scan.readings
-        lever = math.hypot(scan.mount.x, scan.mount.y)
+        lever = _lever(scan)
         if compiled is not None:
             wraps = bool(scan.n_beams * scan.angle_increment >= TWO_PI - 1e-9)
             beams, distances = compiled.shadow_beams(frozen(ranges), frozen(readings), _HIT, _NO_RETURN,
@@ -474,11 +481,20 @@ class PointMemory:
         against = uncertainty
         keep = np.hypot(points[:, 0], points[:, 1]) <= self.max_range + uncertainty
         for scan in scans:
+            # A turning lidar's beams were measured from poses of their own: each point is looked at from the pose
+            # of the beam that looks at it (and put back afterwards), as if that beam had been measured from the
+            # mount (the scan's place is then off by one beam's motion, in ``scan_error``).
+            shift = None if scan.sweep_motion is None else sweep_shift(scan, points, compiled)
+            if shift is not None:
+                points = shift.to_mount(points)
             if compiled is None:
                 seen, points, uncertainty = _seen_again(scan, points, tolerance + uncertainty, uncertainty)
             else:
                 seen, points, uncertainty = _seen_again_compiled(compiled, scan, points, tolerance + uncertainty,
                                                                  uncertainty)
+            if shift is not None:
+                points = shift.back(points)
+                seen &= ~shift.unseen
             keep &= ~seen
         uncertainty = np.where(uncertainty == against, own, uncertainty)   # not narrowed: its own uncertainty
         return points[keep], uncertainty[keep]
@@ -862,6 +878,167 @@ def motion_spread(points: np.ndarray, error: tuple[float, float]) -> np.ndarray:
     ``error = (e_translation [m], e_rotation [rad])`` (:func:`dead_reckoning`) puts it: ``e_translation + d
     e_rotation``, ``d`` its distance from the base origin."""
     return error[0] + np.hypot(points[:, 0], points[:, 1]) * error[1]
+
+
+def sweep_poses(ages: np.ndarray, parts: list[tuple[float, float, float]], mount: Pose2D, compiled: Any = None
+                ) -> tuple[Pose2D, np.ndarray]:
+    """Where a turning lidar was at each beam, ``ages[i]`` [s] before now (monotonic over the beams: one sweep), in
+    the current base frame: the lidar pose of the middle beam [m, m, rad], and each beam's ``(n, 3)`` relative to it
+    [m, m, rad] (:attr:`~safenav.scan.LaserScan.sweep_motion`).
+
+    ``parts``: ``(length [s], v [m/s], omega [rad/s])`` of the motion back from now, the latest first
+    (:meth:`~safenav.filters.SafetyFilter.latent_motion`'s parts); a beam older than all of them was where the oldest
+    began. ``mount``: the lidar's pose on the base. ``compiled``: the kernels of :mod:`~safenav.filters.kernels`
+    (the same poses, by one compiled loop).
+    """
+    # The base pose at the end of each part (its start in time), walking back: the end pose composed with the arc
+    # of ``(-v, -omega)`` over the part (the inverse of the arc the base drove).
+    ends, covered = [Pose2D()], [0.0]
+    for part, v, omega in parts:
+        ends.append(ends[-1].compose(unicycle_step(Pose2D(), -v, -omega, part)))
+        covered.append(covered[-1] + part)
+    if compiled is not None:
+        reference, relative = compiled.sweep_poses(plain(ages), np.array(covered), np.array(parts, dtype=float).reshape(
+            -1, 3), np.array([tuple(end) for end in ends]), float(mount.x), float(mount.y), float(mount.yaw))
+        return Pose2D(float(reference[0]), float(reference[1]), float(reference[2])), relative
+    # A beam ``s`` into a part (counted back from its end) was at the part's end pose composed with the arc back over
+    # ``s``, whose turn is ``-omega s``; each part's beams are a slice of the sorted ages.
+    descending = ages[0] > ages[-1]
+    order = ages[::-1] if descending else ages
+    x, y = np.zeros(ages.size), np.zeros(ages.size)
+    cos_yaw, sin_yaw = np.ones(ages.size), np.zeros(ages.size)
+    first = int(np.searchsorted(order, 0.0, side="right"))      # beams of age 0 were taken now
+    for (part, v, omega), end, start in zip(parts, ends, covered, strict=False):
+        last = int(np.searchsorted(order, start + part, side="right"))
+        if last > first:
+            back = order[first:last] - start
+            turn = omega * back
+            sin_turn, sin_half = np.sin(turn), np.sin(0.5 * turn)
+            cos_turn = 1.0 - 2.0 * sin_half * sin_half
+            if abs(omega) > 1e-12:
+                ax, ay = (-v / omega) * sin_turn, (2.0 * v / omega) * (sin_half * sin_half)
+            else:
+                ax, ay = -v * back, np.zeros(back.size)
+            c, s = math.cos(end.yaw), math.sin(end.yaw)
+            x[first:last], y[first:last] = end.x + c * ax - s * ay, end.y + s * ax + c * ay
+            cos_yaw[first:last], sin_yaw[first:last] = c * cos_turn + s * sin_turn, s * cos_turn - c * sin_turn
+            first = last
+    if first < ages.size:       # older than the parts: where the oldest part began
+        x[first:], y[first:] = ends[-1].x, ends[-1].y
+        cos_yaw[first:], sin_yaw[first:] = math.cos(ends[-1].yaw), math.sin(ends[-1].yaw)
+    if descending:
+        x, y, cos_yaw, sin_yaw = x[::-1], y[::-1], cos_yaw[::-1], sin_yaw[::-1]
+    # The lidar at each beam (the base pose composed with the mount), relative to the lidar at the middle beam.
+    lidar_x = x + cos_yaw * mount.x - sin_yaw * mount.y
+    lidar_y = y + sin_yaw * mount.x + cos_yaw * mount.y
+    middle = ages.size // 2
+    c0, s0 = float(cos_yaw[middle]), float(sin_yaw[middle])
+    reference = Pose2D(float(lidar_x[middle]), float(lidar_y[middle]), wrap_angle(math.atan2(s0, c0) + mount.yaw))
+    dx, dy = lidar_x - reference.x, lidar_y - reference.y
+    cr, sr = math.cos(reference.yaw), math.sin(reference.yaw)
+    relative = np.empty((ages.size, 3))
+    relative[:, 0] = cr * dx + sr * dy
+    relative[:, 1] = -sr * dx + cr * dy
+    relative[:, 2] = np.arctan2(c0 * sin_yaw - s0 * cos_yaw, c0 * cos_yaw + s0 * sin_yaw)    # yaw - the middle's
+    return reference, relative
+
+
+class SweepShift(NamedTuple):
+    """Points of the base frame as a turning lidar's beams saw them (:func:`sweep_shift`)."""
+
+    cos: np.ndarray
+    """``(N,)`` cosines of each point's turn [-]."""
+    sin: np.ndarray
+    """``(N,)`` its sines."""
+    shift: np.ndarray
+    """``(N, 2)`` its shift [m]."""
+    unseen: np.ndarray
+    """``(N,)`` the points no beam looked at: the beam whose pose looks at a point's bearing is not the beam whose pose
+    that bearing was taken from (the seam of a full turn that the base turned against, where the sweep left a gap)."""
+
+    def to_mount(self, points: np.ndarray) -> np.ndarray:
+        """Each point where it lies for a lidar at the mount as it lay for the lidar of its beam [m]."""
+        x, y = points[:, 0], points[:, 1]
+        return np.column_stack((self.cos * x - self.sin * y, self.sin * x + self.cos * y)) + self.shift
+
+    def back(self, points: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`to_mount` [m]."""
+        x, y = points[:, 0] - self.shift[:, 0], points[:, 1] - self.shift[:, 1]
+        return np.column_stack((self.cos * x + self.sin * y, -self.sin * x + self.cos * y))
+
+
+#: Rounds of finding the beam that looks at a point (each lands on it more nearly by the ratio of the base's turn rate
+#: to the lidar's, a few per cent; the last round's beam is the nearest but for a sweep far faster than any base).
+SWEEP_ROUNDS = 3
+
+
+def sweep_step(scan: LaserScan) -> tuple[float, float]:
+    """How far [m] and how much [rad] the lidar moved between two neighbouring beams, at most (with the turn about the
+    lidar, ``|mount|`` from the base origin), as a bound ``(e_translation, e_rotation)``: the error of looking at a
+    point from a neighbour of the beam that looks at it (:func:`sweep_shift`); ``(0, 0)`` without a sweep motion."""
+    motion = scan.sweep_motion
+    if motion is None or motion.shape[0] < 2:
+        return 0.0, 0.0
+    step = np.abs(np.diff(motion, axis=0))
+    turn = float(step[:, 2].max())
+    return float(np.hypot(step[:, 0], step[:, 1]).max()) + math.hypot(scan.mount.x, scan.mount.y) * turn, turn
+
+
+def seam_gap(scan: LaserScan) -> float:
+    """How wide [rad] the gap is that a turning lidar's full turn left where its last beam meets its first, because
+    the base turned against the lidar's spin during the sweep (:attr:`~safenav.scan.LaserScan.sweep_motion`): the
+    directions between them were looked at by no beam of this scan. 0 for a scan that is no full turn, taken at once,
+    or whose base turned with the spin (the turn then overlaps)."""
+    motion = scan.sweep_motion
+    if motion is None or scan.n_beams * scan.angle_increment < TWO_PI - 1e-9:
+        return 0.0
+    return max(TWO_PI - (scan.n_beams * scan.angle_increment + float(motion[-1, 2] - motion[0, 2])), 0.0)
+
+
+def sweep_shift(scan: LaserScan, points: np.ndarray, compiled: Any = None) -> SweepShift:
+    """For each of ``points`` (base frame [m]), the map that puts it where a lidar at the scan's mount would see it as
+    the beam that looks at it saw it from its own pose (:attr:`~safenav.scan.LaserScan.sweep_motion`): the point in
+    that beam's lidar frame, expressed from the mount. The beam is found from the mount's bearing, then again from the
+    pose of the beam found (:data:`SWEEP_ROUNDS` rounds); a bearing outside the field of view takes the nearer end
+    beam. A point whose bearing from the pose of the beam found lies in another beam's cell is one no beam looked at
+    (:attr:`SweepShift.unseen`). ``compiled``: the kernels of :mod:`~safenav.filters.kernels` (the same maps, by one
+    compiled loop)."""
+    motion = scan.sweep_motion
+    mount, n, increment = scan.mount, scan.n_beams, scan.angle_increment
+    if compiled is not None:
+        return SweepShift(*compiled.sweep_shift(plain(points), frozen(motion), float(mount.x), float(mount.y),
+                                                float(mount.yaw), float(scan.angle_min), float(increment),
+                                                SWEEP_ROUNDS))
+    cm, sm = math.cos(mount.yaw), math.sin(mount.yaw)
+    local_x = cm * (points[:, 0] - mount.x) + sm * (points[:, 1] - mount.y)     # in the mount's lidar frame
+    local_y = -sm * (points[:, 0] - mount.x) + cm * (points[:, 1] - mount.y)
+    turn_cos, turn_sin = np.cos(motion[:, 2]), np.sin(motion[:, 2])
+    beams = np.full(points.shape[0], -1, dtype=np.intp)
+    x, y = local_x, local_y
+    for round_index in range(SWEEP_ROUNDS + 1):
+        offset = np.mod(np.arctan2(y, x) - scan.angle_min + 0.5 * increment, TWO_PI) - 0.5 * increment
+        index = np.floor(offset / increment + 0.5)
+        beyond = index > n - 1      # outside the field of view: the nearer end beam
+        index[beyond] = np.where(offset[beyond] - (n - 1) * increment < TWO_PI - offset[beyond], n - 1, 0)
+        if round_index == SWEEP_ROUNDS:
+            unseen = index.astype(np.intp) != beams
+            break
+        beams = index.astype(np.intp)
+        dx, dy, c, s = motion[beams, 0], motion[beams, 1], turn_cos[beams], turn_sin[beams]
+        x = c * (local_x - dx) + s * (local_y - dy)        # in the frame of the lidar at the beam
+        y = -s * (local_x - dx) + c * (local_y - dy)
+    # The base-frame map p -> M D^-1 M^-1 p: a turn by -turn about the mount and a shift.
+    dx, dy, c, s = motion[beams, 0], motion[beams, 1], turn_cos[beams], -turn_sin[beams]     # the turn back
+    # D^-1 in the mount's lidar frame: rotate by -turn, then shift by -R(-turn) (dx, dy); in the base frame the
+    # rotation is about the mount's origin.
+    shift_x = -(c * dx - s * dy)
+    shift_y = -(s * dx + c * dy)
+    base_shift_x = cm * shift_x - sm * shift_y
+    base_shift_y = sm * shift_x + cm * shift_y
+    # p' = M.xy + R_m (R(-turn) R_m^T (p - M.xy) + shift) = R(-turn) p + (M.xy - R(-turn) M.xy + R_m shift)
+    shift = np.column_stack((mount.x - (c * mount.x - s * mount.y) + base_shift_x,
+                             mount.y - (s * mount.x + c * mount.y) + base_shift_y))
+    return SweepShift(c, s, shift, unseen)
 
 
 def _seen_again(scan: LaserScan, points: np.ndarray, tolerance: np.ndarray, uncertainty: np.ndarray

@@ -18,6 +18,8 @@ from benchmarks.falsify import (
     Episode,
     _cell_key,
     _cells,
+    _scan,
+    _swept_scan,
     decode,
     episodes_per_cell,
     run,
@@ -26,7 +28,9 @@ from benchmarks.falsify import (
 from safenav import preset
 from safenav.experiments.runner import reproducible_settings
 from safenav.filters import make_filter
+from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec
+from safenav.synthetic import Circle, Scene, Segment
 
 CELLS = [
     dict(robot="m2wr", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True),
@@ -45,12 +49,17 @@ CELLS = [
     # periods apart: every command, braking too, planned for the measured period).
     dict(robot="rosbot", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True, call_period=0.5),
     dict(robot="puzzlebot", filter_name="mpc", base="ramp_limit", dt=0.05, give_velocity=True, call_period=3.0),
+    # A turning lidar, each beam measured from where the robot was then, the stamp the first beam's.
+    dict(robot="rosbot", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True, sweep="stated"),
+    dict(robot="m2wr", filter_name="mpc", base="ramp", dt=0.05, give_velocity=True, sweep="stated"),
 ]
 
 
 def _cell_id(cell: dict) -> str:
     every = f"-every-{cell['call_period']:g}dt" if "call_period" in cell else ""
-    return f"{cell['robot']}-{cell['filter_name']}-{cell['base']}{'-pose' if cell.get('give_pose') else ''}{every}"
+    sweep = f"-sweep-{cell['sweep']}" if "sweep" in cell else ""
+    return (f"{cell['robot']}-{cell['filter_name']}-{cell['base']}{'-pose' if cell.get('give_pose') else ''}{every}"
+            f"{sweep}")
 
 
 @pytest.mark.parametrize("cell", CELLS, ids=_cell_id)
@@ -242,3 +251,27 @@ def test_the_cells_are_searched_again_with_the_filter_called_early_and_late():
         _, log = run(dataclasses.replace(episode, duration=0.3), record=True)
         assert len(log) == round(0.3 / (period or 0.05))
         assert ("late" in {row["status"] for row in log[1:]}) == (period == 0.15)    # the first call has no period
+
+
+def test_the_cells_are_searched_again_with_a_turning_lidar_whose_last_beam_is_measured_when_the_scan_is_taken():
+    """``--sweeps``: every cell again with a turning lidar (after the others, so that theirs keep their seeds); its
+    scan's last beam is where an instant one looks from, its first one ``scan_time`` earlier, the stamp its time."""
+    cells = _cells(["rosbot"], ["cbf"], ["ramp_limit"], [0.05], ["poles"], ["arc"], sweeps=("stated", "unstated"))
+    assert [_cell_key(cell) for cell in cells] == ["rosbot/cbf", "rosbot/cbf/sweep-stated", "rosbot/cbf/sweep-unstated"]
+    episode = decode(np.full(N_COORDINATES, 0.3), margin=0.05, **cells[1])
+    assert Episode.from_json(episode.to_json()) == episode and episode.sweep == "stated"
+    robot, scene = preset("rosbot"), Scene((Segment((0.8, -2.0), (0.8, 2.0)),), (Circle((0.0, 0.9), 0.1),))
+
+    def pose_at(time: float) -> Pose2D:
+        return unicycle_step(Pose2D(), 0.8, 2.5, time)
+
+    rng = np.random.default_rng(0)
+    stated = _swept_scan(robot, scene, pose_at, 0.4, 0.0, rng, stated=True)
+    unstated = _swept_scan(robot, scene, pose_at, 0.4, 0.0, rng, stated=False)
+    step = robot.lidar.scan_time / robot.lidar.n_beams
+    assert stated.stamp == pytest.approx(0.4 - (robot.lidar.n_beams - 1) * step)
+    assert stated.time_increment == pytest.approx(step) and unstated.time_increment == 0.0
+    np.testing.assert_array_equal(stated.ranges, unstated.ranges)
+    instant = _scan(robot, scene, pose_at(0.4), 0.0, rng, 0.4)
+    assert stated.ranges[-1] == pytest.approx(instant.ranges[-1], abs=1e-12)
+    assert not np.allclose(stated.ranges[: robot.lidar.n_beams // 2], instant.ranges[: robot.lidar.n_beams // 2])

@@ -17,7 +17,7 @@ from safenav.filters import CBFSafetyFilter, MPCSafetyFilter, kernels
 from safenav.filters.base import View
 from safenav.filters.mpc import MPCProblem
 from safenav.filters.perception import Frontier, shadow_points
-from safenav.synthetic import Scene, Segment, synthetic_scan
+from safenav.synthetic import Scene, Segment, swept_scan, synthetic_scan
 
 numba = pytest.importorskip("numba", reason="the compiled kernels need numba (pip install 'safenav[fast]')")
 
@@ -409,6 +409,51 @@ def test_the_compiled_nearest_per_bin_is_the_numpy_one():
     assert ties > 100
 
 
+def test_the_compiled_sweep_poses_are_the_numpy_ones():
+    """Where a turning lidar was at each beam: the compiled loop gives ``perception.sweep_poses``'s poses exactly, for
+    sweeps forwards and backwards in the beams, ages from now to past every part, straight and turning parts, and no
+    part at all."""
+    from safenav.filters.perception import sweep_poses
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(11)
+    for trial in range(500):
+        count = int(rng.integers(2, 800))
+        times = np.arange(count) * rng.uniform(1e-5, 3e-4)
+        ages = np.maximum(rng.uniform(0.0, 0.3) - (times if trial % 2 else times[::-1]), 0.0)
+        parts = [(float(rng.uniform(0.005, 0.1)), float(rng.uniform(-1.0, 1.0)),
+                  float(rng.uniform(-3.0, 3.0)) if rng.random() < 0.7 else 0.0) for _ in range(int(rng.integers(0, 5)))]
+        mount = Pose2D(*rng.uniform(-0.3, 0.3, 2), float(rng.uniform(-math.pi, math.pi)))
+        want_reference, want = sweep_poses(ages, parts, mount)
+        got_reference, got = sweep_poses(ages, parts, mount, compiled)
+        assert tuple(got_reference) == tuple(want_reference)
+        np.testing.assert_array_equal(got, want)
+
+
+def test_the_compiled_sweep_shift_is_the_numpy_one():
+    """From which beam's pose the memory looks at each remembered point: the compiled loop gives
+    ``perception.sweep_shift``'s maps exactly, for fields of view of half a turn to a whole one, points all round
+    (outside the field of view too), any mount."""
+    from safenav.filters.perception import sweep_shift
+    from safenav.scan import LaserScan
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(12)
+    for _ in range(300):
+        count = int(rng.integers(10, 800))
+        view = float(rng.choice([math.pi, 1.5 * math.pi, 2.0 * math.pi * (1.0 - 1.0 / count)]))
+        scan = LaserScan(angle_min=-view / 2, angle_max=view / 2, angle_increment=view / (count - 1),
+                         ranges=np.ones(count), range_min=0.1, range_max=10.0, mount=tuple(rng.uniform(-0.3, 0.3, 3)))
+        extent = np.linspace(-1.0, 1.0, count)
+        motion = np.column_stack((rng.uniform(-0.03, 0.03) * extent, rng.uniform(-0.03, 0.03) * extent,
+                                  rng.uniform(-0.2, 0.2) * extent))
+        swept = scan.with_sweep_motion(motion)
+        points = rng.normal(0.0, 1.5, (int(rng.integers(0, 500)), 2))
+        want, got = sweep_shift(swept, points), sweep_shift(swept, points, compiled)
+        for name in ("cos", "sin", "shift", "unseen"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+
+
 def test_auto_keeps_to_numpy_with_a_warning_when_the_kernels_do_not_compile(monkeypatch):
     """A numba that is installed but cannot compile (an unsupported CPU, a broken LLVM): ``"auto"`` still gives a
     filter, on numpy, and says why once; ``"numba"`` raises the compile error."""
@@ -457,6 +502,9 @@ def test_no_call_compiles_a_kernel_again():
         pose, velocity = Pose2D(), np.zeros(2)
         for step in range(30):
             scan = synthetic_scan(robot, scene, pose, noise_std=0.005, rng=rng)
+            if step % 5 == 4:   # a turning lidar's scan
+                scan = swept_scan(robot, scene, lambda t, pose=pose, velocity=velocity: unicycle_step(
+                    pose, float(velocity[0]), float(velocity[1]), t), 0.0)
             result = safety.filter((robot.v_max, robot.omega_max), scan,
                                    velocity=None if step % 3 == 0 else velocity, scan_age=0.05 if step % 2 else None)
             velocity = robot.clip(result.u, velocity, 0.05)
