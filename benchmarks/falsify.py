@@ -72,7 +72,7 @@ from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, preset
 from safenav.scan import LaserScan
-from safenav.synthetic import Circle, Scene, Segment, cast, swept_scan
+from safenav.synthetic import Circle, Scene, Segment, cast
 
 __all__ = [
     "BASES",
@@ -385,23 +385,38 @@ def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.ra
     return template.with_ranges(ranges, stamp=stamp)
 
 
-def _swept_scan(robot: RobotSpec, scene: Scene, pose_at: Callable[[float], Pose2D], taken: float, noise: float,
-                rng: np.random.Generator, *, stated: bool) -> LaserScan:
+def _swept_scan(robot: RobotSpec, scene: Scene, poses_at: Callable[[np.ndarray], np.ndarray], taken: float,
+                noise: float, rng: np.random.Generator, *, stated: bool) -> LaserScan:
     """A turning lidar's scan whose last beam is measured at ``taken`` [s], each beam from where the robot was then
-    (:func:`safenav.synthetic.swept_scan`), with the range noise of :func:`_scan`; ``stated``: its
-    ``time_increment`` given (else 0, as from a driver that does not state it)."""
+    (``poses_at``: the base poses ``(n, 3)`` at an array of times; as :func:`safenav.synthetic.swept_scan`, whose
+    lidar turns once per ``scan_time``), with the range noise of :func:`_scan`; ``stated``: its ``time_increment``
+    given (else 0, as from a driver that does not state it)."""
     lidar = robot.lidar
     step = lidar.scan_time / lidar.n_beams
     first = taken - (lidar.n_beams - 1) * step
-    scan = swept_scan(lidar, scene, pose_at, first)
-    ranges = scan.ranges.copy()
+    template = lidar.scan().replace(time_increment=step if stated else 0.0, scan_time=lidar.scan_time)
+    base = poses_at(first + step * np.arange(lidar.n_beams))
+    mount = lidar.mount
+    cos_yaw, sin_yaw = np.cos(base[:, 2]), np.sin(base[:, 2])
+    origins = np.column_stack((base[:, 0] + cos_yaw * mount.x - sin_yaw * mount.y,
+                               base[:, 1] + sin_yaw * mount.x + cos_yaw * mount.y))
+    ranges = cast(origins, template.angles + base[:, 2] + mount.yaw, scene)
     finite = np.isfinite(ranges)
     if noise > 0.0:
         ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
     ranges[ranges > lidar.range_max] = math.inf
-    ranges[(ranges < lidar.range_min) & finite] = -math.inf
-    template = scan if stated else scan.replace(time_increment=0.0)
+    ranges[ranges < lidar.range_min] = -math.inf
     return template.with_ranges(ranges, stamp=first)
+
+
+def _arcs(start: np.ndarray, velocity: np.ndarray, spans: np.ndarray) -> np.ndarray:
+    """The poses ``(n, 3)`` after holding each ``velocity`` ``(n, 2)`` for ``spans`` ``(n,)`` [s] from each ``start``
+    ``(n, 3)``: :func:`safenav.geometry.unicycle_step` of arrays (the yaw not wrapped)."""
+    half = 0.5 * velocity[:, 1] * spans
+    chord = velocity[:, 0] * spans * np.sinc(half / math.pi)
+    heading = start[:, 2] + half
+    return np.column_stack((start[:, 0] + chord * np.cos(heading), start[:, 1] + chord * np.sin(heading),
+                            start[:, 2] + velocity[:, 1] * spans))
 
 
 def _clearances(scene: Scene, centres: np.ndarray, radius: float) -> np.ndarray:
@@ -519,6 +534,8 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
     # Every sub-step's start pose and velocity, for where the robot was when a late scan was taken.
     path_poses: list[Pose2D] = []
     path_velocities: list[np.ndarray] = []
+    path_blocks: list[np.ndarray] = []         # the same, a period's sub-steps per array (a turning lidar's scans)
+    velocity_blocks: list[np.ndarray] = []
     velocity_start = velocity.copy()
 
     def pose_at(time: float) -> Pose2D:
@@ -528,11 +545,25 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         held = path_velocities[index]
         return unicycle_step(path_poses[index], float(held[0]), float(held[1]), time - index * h)
 
+    def poses_at(times: np.ndarray) -> np.ndarray:
+        """:func:`pose_at` of every time at once, ``(n, 3)`` (a turning lidar's beams)."""
+        start, held = np.zeros((times.size, 3)), np.empty((times.size, 2))
+        spans = -times
+        before = times <= 0.0
+        held[before] = -velocity_start
+        after = ~before
+        if after.any():
+            index = np.minimum((times[after] / h).astype(np.intp), len(path_blocks) * SUBSTEPS - 1)
+            start[after] = np.concatenate(path_blocks)[index]
+            held[after] = np.concatenate(velocity_blocks)[index]
+            spans[after] = times[after] - index * h
+        return _arcs(start, held, spans)
+
     for step in range(steps):
         t = step * period
         taken = t - episode.latency
         if episode.sweep:
-            scan = _swept_scan(robot, scene, pose_at, taken, episode.noise, rng, stated=episode.sweep == "stated")
+            scan = _swept_scan(robot, scene, poses_at, taken, episode.noise, rng, stated=episode.sweep == "stated")
         else:
             scan = _scan(robot, scene, pose if taken >= t else pose_at(taken), episode.noise, rng, taken)
         u_nom = policy(t, scan, pose)
@@ -557,9 +588,12 @@ def run(episode: Episode, *, record: bool = False) -> tuple[Outcome, list[dict[s
         command = np.asarray(result.u, dtype=float)
         profile = _velocity_profile(episode.base, velocity, command, robot, period, time_constant=dt)
         poses = unicycle_rollout(pose, profile[:SUBSTEPS], h)
-        if episode.latency > 0.0 or episode.sweep:
+        if episode.latency > 0.0:
             path_poses.extend(Pose2D(*row) for row in poses[:-1])
             path_velocities.extend(profile[:SUBSTEPS])
+        if episode.sweep:
+            path_blocks.append(poses[:-1])
+            velocity_blocks.append(profile[:SUBSTEPS])
         pose = Pose2D(float(poses[-1, 0]), float(poses[-1, 1]), float(wrap_angle(poses[-1, 2])))
         clearances = truth(poses[1:])
         clearance = float(clearances[-1])

@@ -16,6 +16,7 @@ from benchmarks.falsify import (
     SEARCHED_NOMINALS,
     TOLERANCE,
     Episode,
+    _arcs,
     _cell_key,
     _cells,
     _scan,
@@ -30,7 +31,7 @@ from safenav.experiments.runner import reproducible_settings
 from safenav.filters import make_filter
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import RobotSpec
-from safenav.synthetic import Circle, Scene, Segment
+from safenav.synthetic import Circle, Scene, Segment, swept_scan
 
 CELLS = [
     dict(robot="m2wr", filter_name="cbf", base="ramp_limit", dt=0.05, give_velocity=True),
@@ -262,12 +263,17 @@ def test_the_cells_are_searched_again_with_a_turning_lidar_whose_last_beam_is_me
     assert Episode.from_json(episode.to_json()) == episode and episode.sweep == "stated"
     robot, scene = preset("rosbot"), Scene((Segment((0.8, -2.0), (0.8, 2.0)),), (Circle((0.0, 0.9), 0.1),))
 
+    def poses_at(times: np.ndarray) -> np.ndarray:
+        return _arcs(np.zeros((times.size, 3)), np.tile((0.8, 2.5), (times.size, 1)), times)
+
     def pose_at(time: float) -> Pose2D:
         return unicycle_step(Pose2D(), 0.8, 2.5, time)
 
     rng = np.random.default_rng(0)
-    stated = _swept_scan(robot, scene, pose_at, 0.4, 0.0, rng, stated=True)
-    unstated = _swept_scan(robot, scene, pose_at, 0.4, 0.0, rng, stated=False)
+    stated = _swept_scan(robot, scene, poses_at, 0.4, 0.0, rng, stated=True)
+    unstated = _swept_scan(robot, scene, poses_at, 0.4, 0.0, rng, stated=False)
+    # ... beam by beam as safenav.synthetic.swept_scan casts it
+    np.testing.assert_allclose(stated.ranges, swept_scan(robot, scene, pose_at, stated.stamp).ranges, atol=1e-9)
     step = robot.lidar.scan_time / robot.lidar.n_beams
     assert stated.stamp == pytest.approx(0.4 - (robot.lidar.n_beams - 1) * step)
     assert stated.time_increment == pytest.approx(step) and unstated.time_increment == 0.0
