@@ -70,7 +70,7 @@ from safenav.filters.body import BodyModel
 from safenav.filters.mpc.config import REFERENCES
 from safenav.filters.perception import START_BLIND_CLEARANCE
 from safenav.geometry import Pose2D, unicycle_rollout, unicycle_step, wrap_angle
-from safenav.robot import RobotSpec, preset
+from safenav.robot import LidarSpec, RobotSpec, preset
 from safenav.scan import LaserScan
 from safenav.synthetic import Circle, Scene, Segment, cast
 
@@ -377,12 +377,18 @@ def _scan(robot: RobotSpec, scene: Scene, pose: Pose2D, noise: float, rng: np.ra
     template = lidar.scan()
     sensor = pose.compose(lidar.mount)
     ranges = cast((sensor.x, sensor.y), template.angles + sensor.yaw, scene)
+    return template.with_ranges(_reported(ranges, lidar, noise, rng), stamp=stamp)
+
+
+def _reported(ranges: np.ndarray, lidar: LidarSpec, noise: float, rng: np.random.Generator) -> np.ndarray:
+    """Exact distances [m] as the lidar reports them: uniform noise within ``+- noise`` on every hit, ``+inf`` beyond
+    ``range_max``, ``-inf`` nearer than ``range_min``."""
     finite = np.isfinite(ranges)
     if noise > 0.0:
         ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
     ranges[ranges > lidar.range_max] = math.inf
     ranges[ranges < lidar.range_min] = -math.inf
-    return template.with_ranges(ranges, stamp=stamp)
+    return ranges
 
 
 def _swept_scan(robot: RobotSpec, scene: Scene, poses_at: Callable[[np.ndarray], np.ndarray], taken: float,
@@ -401,12 +407,7 @@ def _swept_scan(robot: RobotSpec, scene: Scene, poses_at: Callable[[np.ndarray],
     origins = np.column_stack((base[:, 0] + cos_yaw * mount.x - sin_yaw * mount.y,
                                base[:, 1] + sin_yaw * mount.x + cos_yaw * mount.y))
     ranges = cast(origins, template.angles + base[:, 2] + mount.yaw, scene)
-    finite = np.isfinite(ranges)
-    if noise > 0.0:
-        ranges[finite] += rng.uniform(-noise, noise, int(finite.sum()))
-    ranges[ranges > lidar.range_max] = math.inf
-    ranges[ranges < lidar.range_min] = -math.inf
-    return template.with_ranges(ranges, stamp=first)
+    return template.with_ranges(_reported(ranges, lidar, noise, rng), stamp=first)
 
 
 def _arcs(start: np.ndarray, velocity: np.ndarray, spans: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ import itertools
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +42,8 @@ from safenav.experiments.runner import reproducible_settings
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter
 from safenav.filters.perception import beam_points
 from safenav.geometry import Pose2D, unicycle_step
-from safenav.robot import PRESET_NAMES, preset
+from safenav.robot import PRESET_NAMES, RobotSpec, preset
+from safenav.scan import LaserScan
 from safenav.synthetic import Circle, Scene, Segment, swept_scan
 
 #: Time from the end of the sweep to the call [s] (the driver's and the middleware's).
@@ -58,8 +59,9 @@ def room() -> Scene:
                  circles=(Circle((0.7, -0.45), 0.08),))
 
 
-def _true_points(robot, scan, pose_at, now: float) -> np.ndarray:
-    """Each obstacle beam's hit where it is in the base frame at ``now``."""
+def true_points(robot: RobotSpec, scan: LaserScan, pose_at: Callable[[float], Pose2D], now: float) -> np.ndarray:
+    """Each obstacle beam's hit of a turning lidar's ``scan`` (beam by beam, along ``pose_at``: the base pose at a
+    time), where it is in the base frame at ``now`` [m], the scan's obstacle beams in order."""
     index, ranges = scan.obstacle_beams()
     times = scan.stamp + scan.beam_times
     world = np.empty((index.size, 2))
@@ -83,7 +85,7 @@ def point_errors(robots: Sequence[str], within: float) -> list[dict[str, Any]]:
 
         scan = swept_scan(robot, room(), pose_at, stamp=0.0)
         now = robot.lidar.scan_time + DELIVERY
-        truth = _true_points(robot, scan, pose_at, now)
+        truth = true_points(robot, scan, pose_at, now)
         near = np.hypot(*truth.T) <= within
         row: dict[str, Any] = dict(robot=name, v=v, omega=omega, sweep_time=robot.lidar.scan_time,
                                    points=int(near.sum()))

@@ -52,6 +52,7 @@ from safenav.filters.perception import (
     dead_reckoning,
     horizon_points,
     motion_spread,
+    reckoning,
     resolved_range,
     seam_gap,
     shadow_points,
@@ -919,9 +920,7 @@ class SafetyFilter(abc.ABC):
                 break
             part = min(float(period.held), left)
             if period.start is not None and period.end is not None:
-                (v0, w0), (v1, w1) = (float(value) for value in period.start), (float(value) for value in period.end)
-                parts.append((part, 0.5 * (v0 + v1), 0.5 * (w0 + w1), dead_reckoning(period.start, period.end,
-                                                                                      part)[1]))
+                parts.append((part, *reckoning(period.start, period.end, part)))
             else:
                 parts.append((part, float(period.command[0]), float(period.command[1]), (0.0, 0.0)))
             left -= part

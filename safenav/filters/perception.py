@@ -866,11 +866,17 @@ def dead_reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[
         and the bound of the error of its distance [m] and of its angle [rad]; a point ``d`` from
         the base is off by at most ``e_translation + d e_rotation`` after the motion.
     """
+    v, omega, error = reckoning(start, end, elapsed)
+    return unicycle_step(Pose2D(), v, omega, elapsed), error
+
+
+def reckoning(start: np.ndarray, end: np.ndarray, elapsed: float) -> tuple[float, float, tuple[float, float]]:
+    """:func:`dead_reckoning` before its arc: the mean velocity ``(v [m/s], omega [rad/s])`` the arc holds for
+    ``elapsed`` [s] and the bound ``(e_translation [m], e_rotation [rad])`` of the motion's error."""
     (v0, w0), (v1, w1) = (float(value) for value in start), (float(value) for value in end)   # floats: a call's
-    motion = unicycle_step(Pose2D(), 0.5 * (v0 + v1), 0.5 * (w0 + w1), elapsed)              # arithmetic, not arrays
-    rotation = 0.5 * elapsed * abs(w1 - w0)
+    rotation = 0.5 * elapsed * abs(w1 - w0)                                                   # arithmetic, not arrays
     drag = 0.5 * elapsed * max(abs(v0), abs(v1)) * rotation
-    return motion, (0.5 * elapsed * abs(v1 - v0) + drag, rotation)
+    return 0.5 * (v0 + v1), 0.5 * (w0 + w1), (0.5 * elapsed * abs(v1 - v0) + drag, rotation)
 
 
 def motion_spread(points: np.ndarray, error: tuple[float, float]) -> np.ndarray:

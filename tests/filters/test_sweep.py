@@ -19,39 +19,16 @@ import numpy as np
 import pytest
 
 from benchmarks.falsify import Episode, run
+from benchmarks.lidar_sweep import DELIVERY, room, true_points
 from safenav.filters import CBFSafetyFilter, MPCSafetyFilter
 from safenav.filters.perception import beam_points, motion_spread, seam_gap
 from safenav.geometry import Pose2D, unicycle_step
 from safenav.robot import preset
 from safenav.scan import LaserScan
-from safenav.synthetic import Circle, Scene, Segment, cast, swept_scan
+from safenav.synthetic import Circle, Scene, cast, swept_scan
 
 #: Where each preset is driven: its top speed and yaw rate.
 TOP = {"rosbot": (1.0, 3.0), "puzzlebot": (0.4, 2.0), "m2wr": (1.0, 2.0)}
-#: Time from the end of the sweep to the call [s] (the driver's and the middleware's).
-DELIVERY = 0.02
-
-
-def _scene() -> Scene:
-    """A room 3 x 2.4 m round the start, a pole and a box corner near it."""
-    corners = [(-1.5, -1.2), (1.5, -1.2), (1.5, 1.2), (-1.5, 1.2)]
-    walls = tuple(Segment(corners[i], corners[(i + 1) % 4]) for i in range(4))
-    return Scene(segments=(*walls, Segment((0.6, 0.5), (1.0, 0.5)), Segment((0.6, 0.5), (0.6, 0.9))),
-                 circles=(Circle((0.7, -0.45), 0.08),))
-
-
-def _true_points(robot, scan, pose_at, now: float) -> np.ndarray:
-    """Each obstacle beam's hit, where it is in the base frame at ``now`` (the scan's beams in order)."""
-    lidar = robot.lidar
-    current = pose_at(now)
-    index, ranges = scan.obstacle_beams()
-    world = np.empty((index.size, 2))
-    times = scan.stamp + scan.beam_times
-    for row, (beam, distance) in enumerate(zip(index, ranges, strict=True)):
-        sensor = pose_at(times[beam]).compose(lidar.mount)
-        direction = sensor.yaw + scan.angles[beam]
-        world[row] = sensor.x + distance * math.cos(direction), sensor.y + distance * math.sin(direction)
-    return current.to_local(world)
 
 
 def _filters(robot):
@@ -83,11 +60,11 @@ def test_a_swept_scan_shows_every_point_where_it_is_now_when_the_base_held_its_v
         return unicycle_step(Pose2D(-0.3, 0.1, 0.4), v, omega, t)
 
     if spin == "clockwise":
-        scan = _clockwise_scan(robot, _scene(), pose_at, stamp=0.0)
+        scan = _clockwise_scan(robot, room(), pose_at, stamp=0.0)
     else:
-        scan = swept_scan(robot, _scene(), pose_at, stamp=0.0)
+        scan = swept_scan(robot, room(), pose_at, stamp=0.0)
     now = robot.lidar.scan_time + DELIVERY
-    truth = _true_points(robot, scan, pose_at, now)
+    truth = true_points(robot, scan, pose_at, now)
     for filt in _filters(robot):
         scans = filt.current_scans(scan, velocity=(v, omega), now=now)
         seen = beam_points(scans, filt.body)
@@ -135,11 +112,11 @@ def test_a_swept_scan_shows_every_point_within_the_dead_reckonings_bound_when_th
     calls = len(velocities) - 1
     now = calls * dt
     stamp = now - DELIVERY - robot.lidar.scan_time
-    scan = swept_scan(robot, _scene(), pose_at, stamp=stamp)
-    truth = _true_points(robot, scan, pose_at, now)
+    scan = swept_scan(robot, room(), pose_at, stamp=stamp)
+    truth = true_points(robot, scan, pose_at, now)
     for filt in _filters(robot):
         for call in range(calls):       # the calls before, each measuring the velocity then
-            earlier = swept_scan(robot, _scene(), pose_at, stamp=max(call * dt - DELIVERY - robot.lidar.scan_time,
+            earlier = swept_scan(robot, room(), pose_at, stamp=max(call * dt - DELIVERY - robot.lidar.scan_time,
                                                                        0.0))
             filt.filter(velocities[call], earlier, velocity=velocities[call], now=call * dt)
         scans = filt.current_scans(scan, velocity=velocities[-1], now=now)
@@ -155,7 +132,7 @@ def test_a_full_turn_leaves_a_gap_at_its_seam_when_the_base_turns_against_the_li
     last beam meets its first short of where the first looked (:func:`~safenav.filters.perception.seam_gap`)."""
     robot = preset("rosbot")
     for omega, gap in ((-3.0, True), (3.0, False), (0.0, False)):
-        scan = swept_scan(robot, _scene(), lambda t, omega=omega: unicycle_step(Pose2D(), 0.5, omega, t), 0.0)
+        scan = swept_scan(robot, room(), lambda t, omega=omega: unicycle_step(Pose2D(), 0.5, omega, t), 0.0)
         moved = CBFSafetyFilter(robot, 0.05).current_scans(scan, velocity=(0.5, omega), now=0.12)[0]
         width = seam_gap(moved)
         turned = abs(omega) * robot.lidar.scan_time * (robot.lidar.n_beams - 1) / robot.lidar.n_beams
