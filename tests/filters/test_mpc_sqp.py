@@ -1,10 +1,12 @@
 """The direct SQP's model and steps: the knots' model is the every-period model through ``B``, its
-Jacobian is the model's derivative, and extrapolating contracting steps leaves the answers where the
+Jacobian is the model's derivative, and the secant's jumps (a slow tail, a cycle) leave the answers where the
 plain SQP ends (tests/filters/test_mpc_replay.py checks both against casadi's sqpmethod)."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -83,18 +85,106 @@ def wall_problems(name: str, dt: float, count: int) -> tuple[MPCSafetyFilter, li
     return safety, problems
 
 
+def test_the_secants_jump_ends_a_geometric_series_and_halves_a_cycle():
+    """Anderson's acceleration with a memory of one on the two kinds of slow iterations of the SQP."""
+    rng = np.random.default_rng(11)
+    direction, start = rng.normal(size=6), rng.normal(size=6)
+    # Steps d, r d, r^2 d, ... from start: the series ends at start + d / (1 - r). After two steps (the last
+    # answer start + d + r d), the jump is the rest of the series.
+    ratio = 0.8
+    last_answer = start + direction
+    answer = last_answer + ratio * direction
+    jump = sqp._secant_jump(ratio * direction, direction, answer - last_answer)
+    np.testing.assert_allclose(answer + jump, start + direction / (1.0 - ratio), rtol=0.0, atol=1e-12)
+    # A cycle: from a to b (step b - a), then back from b to a (step a - b): the jump from a lands halfway.
+    a, b = start, start + direction
+    jump = sqp._secant_jump(a - b, b - a, a - b)
+    np.testing.assert_allclose(a + jump, 0.5 * (a + b), rtol=0.0, atol=1e-12)
+    # Nearly stalled steps (ratio 0.999: the series' end 1000 steps away) jump no farther than MAX_JUMP steps.
+    jump = sqp._secant_jump(0.999 * direction, direction, 0.999 * direction)
+    assert np.max(np.abs(jump)) == pytest.approx(sqp.MAX_JUMP * 0.999 * np.max(np.abs(direction)), rel=1e-12)
+    np.testing.assert_allclose(jump / np.linalg.norm(jump), direction / np.linalg.norm(direction), atol=1e-12)
+    # The same step twice: no secant, no jump.
+    assert not np.any(sqp._secant_jump(direction, direction, direction))
+
+
+def test_no_solve_of_the_puzzlebots_wall_loop_goes_round_to_the_iteration_limit():
+    """Issue 18's closed loop (a wall beside the path, the nominal turning into it at full speed, a base ramping at
+    its limits) on the Puzzlebot at dt 0.05, no compute budget. The extrapolation this replaced jumped along the
+    last step by its geometric series, from a ratio measured on two steps: on two of these solves the jump
+    overshot, the next step came back four times as large, shrank, was extrapolated again, and so on to the limit
+    of 30 iterations (a command held from the last iterate, 7-15 ms). The secant through the last two iterates
+    lands near the fixed point: 11 iterations at most."""
+    from benchmarks.filter_latency import wall_episodes
+
+    robot, dt = preset("puzzlebot"), 0.05
+    outcomes: list[sqp.NLPOutcome] = []
+
+    def make() -> MPCSafetyFilter:
+        safety = MPCSafetyFilter(robot, dt, budget=math.inf)
+        solve = safety.backend.solve
+
+        def recording(nlp, *args, **kwargs):
+            outcome = solve(nlp, *args, **kwargs)
+            outcomes.append(outcome)
+            return outcome
+
+        safety.backend.solve = recording    # type: ignore[method-assign]
+        return safety
+
+    wall_episodes(robot, dt, make, 0, lambda scan, seconds, result: None)
+    assert len(outcomes) > 200
+    assert {outcome.status for outcome in outcomes} == {"converged"}
+    assert max(outcome.iterations for outcome in outcomes) <= 15
+
+
+def test_the_secant_takes_the_slack_problems_of_a_fast_slow_braking_robot_in_fewer_iterations(monkeypatch):
+    """The falsifier's fast, slow-braking robot (tests/data/falsifier_robots.json: a wall seen too late to brake
+    clear of it, one slack for every row of 0.12 m): with full steps its SQP goes round cycles of steps of
+    0.4-1.2 m/s turning back and forth (16 of the episode's 162 solves at the limit of 30 iterations on the tree
+    before). Every NLP of the episode solved again with full steps and with the secant's jumps: the jumps take
+    fewer iterations in all (1172 against 1400 when this was written), and every answer they converge to is a
+    fixed point of the SQP (solved again from it, it stops at its first step)."""
+    from benchmarks.falsify import Episode, make_filter, robot_spec, run
+
+    found = json.loads((Path(__file__).resolve().parents[1] / "data" / "falsifier_robots.json").read_text())
+    episode = Episode.from_json(next(line for key, line in found.items() if key.startswith("fast_slow_braking")))
+    problems: list[sqp.PlanNLP] = []
+    solve = sqp.DirectSQP.solve
+
+    def recording(self, nlp, *args, **kwargs):
+        problems.append(nlp)
+        return solve(self, nlp, *args, **kwargs)
+
+    monkeypatch.setattr(sqp.DirectSQP, "solve", recording)
+    run(episode)
+    monkeypatch.setattr(sqp.DirectSQP, "solve", solve)
+    assert len(problems) > 100
+    backend = make_filter(episode.filter, robot_spec(episode.robot), episode.dt, **episode.settings).backend
+    jumping = [backend.solve(nlp) for nlp in problems]
+    again = [backend.solve(nlp._replace(start=outcome.knots)) for nlp, outcome in zip(problems, jumping, strict=True)
+             if outcome.status == "converged"]
+    monkeypatch.setattr(sqp, "ACCELERATION_WINDOW", 0.0)
+    monkeypatch.setattr(sqp, "CYCLE_COSINE", -2.0)
+    full = [backend.solve(nlp) for nlp in problems]
+    assert sum(outcome.iterations for outcome in jumping) < 0.9 * sum(outcome.iterations for outcome in full)
+    assert len(again) >= 0.9 * len(problems)
+    assert all(outcome.status == "converged" and outcome.iterations == 1 for outcome in again)
+
+
 @pytest.mark.parametrize("name, dt", [("rosbot", 0.05), ("m2wr", 0.02)])
-def test_extrapolating_contracting_steps_ends_where_the_plain_sqp_ends(name, dt, monkeypatch):
+def test_the_secants_jumps_end_where_the_plain_sqp_ends(name, dt, monkeypatch):
     safety, problems = wall_problems(name, dt, 40)
     extrapolated = [safety.backend.solve(nlp) for nlp in problems]
-    monkeypatch.setattr(sqp, "EXTRAPOLATION_WINDOW", 0.0)
+    monkeypatch.setattr(sqp, "ACCELERATION_WINDOW", 0.0)
+    monkeypatch.setattr(sqp, "CYCLE_COSINE", -2.0)
     plain = [safety.backend.solve(nlp) for nlp in problems]
     for fast, slow in zip(extrapolated, plain, strict=True):
         assert fast.status == slow.status == "converged"
         assert fast.iterations <= slow.iterations + 1
         # Both stop on a step of 1e-5 while contracting about linearly: a few steps apart at most.
         np.testing.assert_allclose(fast.knots, slow.knots, rtol=0.0, atol=1e-4)
-    # ... and it does extrapolate here: fewer iterations in all.
+    # ... and it does jump here: fewer iterations in all.
     assert sum(outcome.iterations for outcome in extrapolated) < sum(outcome.iterations for outcome in plain)
 
 

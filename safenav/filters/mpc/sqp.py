@@ -28,9 +28,12 @@ constant Hessian, the clearance rows linearised) is assembled in numpy without l
 (every row as a (point, knot and disk) array entry) and solved by a
 :class:`~safenav.filters.qp.QPBackend` (DAQP called directly by default, the CBF's back-end
 interface), with full steps from the warm start, until the step is below :data:`STEP_TOLERANCE`.
-Where the steps contract slowly along one direction (the Hessian leaves the rows' curvature out)
-they are extrapolated to the end of their geometric series (:data:`EXTRAPOLATION_WINDOW`); the fixed
-point, and the test of convergence on a QP's own step, are unchanged. Only the clearance rows that
+Where the steps contract slowly (the Hessian leaves the rows' curvature out), or turn back and forth
+round a cycle, the next linearisation point is the secant's estimate of the fixed point, through the
+last two iterates and their QPs' answers (Anderson's acceleration with a memory of one,
+:func:`_secant_jump`, :data:`ACCELERATION_WINDOW`, :data:`CYCLE_COSINE`); the fixed point, and the
+test of convergence on a QP's own step, are unchanged (``benchmarks/sqp_iterations.py`` measures both
+ways on the same NLPs). Only the clearance rows that
 can bind are passed to the QP; any other row its answer violates is added and the QP solved again,
 so each step is the step of the QP with every row. With a slack per point (``slack_groups``) the QP
 has the slacks of the points with a row in it (any other is 0 at the optimum), and of each point's
@@ -46,7 +49,6 @@ the same NLP to casadi's ``sqpmethod`` (the reference) or Ipopt.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -60,7 +62,7 @@ from safenav.filters.mpc.nlp import PlanModel
 from safenav.filters.mpc.plan import MIN_ROW_SCALE, PlanLayout, block_ramp
 from safenav.filters.qp import QPBackend, QPData
 
-__all__ = ["EXTRAPOLATION_WINDOW", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver",
+__all__ = ["ACCELERATION_WINDOW", "STEP_TOLERANCE", "DirectSQP", "NLPOutcome", "PlanCost", "PlanNLP", "PlanSolver",
            "knot_changes"]
 
 #: The SQP stops when no knot command moves by more than this in a step [m/s, rad/s].
@@ -76,14 +78,18 @@ ROW_TOLERANCE = 1e-9
 #: A row within this of holding with equality [m] stays in the next iteration's QP.
 ACTIVE_TOLERANCE = 1e-6
 #: Rounds of row generation within one SQP step before every checked row goes to the QP.
-MAX_ROW_ROUNDS = 6
-#: Steps smaller than this [m/s, rad/s] that shrink by a ratio within EXTRAPOLATION_RATIOS along
-#: nearly one direction (cosine above EXTRAPOLATION_COSINE) are extrapolated to the end of their
-#: geometric series (the SQP converges linearly where the clearance rows' curvature, which its
-#: Hessian leaves out, matters): the slow tail of a solve in one jump, its fixed point unchanged.
-EXTRAPOLATION_WINDOW = 1e-3
-EXTRAPOLATION_RATIOS = (0.1, 0.95)
-EXTRAPOLATION_COSINE = 0.99
+MAX_ROW_ROUNDS = 8
+#: A step smaller than this [m/s, rad/s] that shrinks the last by a ratio within ACCELERATION_RATIOS is followed
+#: by the secant's estimate of the fixed point (the SQP converges linearly where the clearance rows' curvature,
+#: which its Hessian leaves out, matters): its slow tail in a few jumps, its fixed point unchanged.
+ACCELERATION_WINDOW = 1e-3
+ACCELERATION_RATIOS = (0.1, 1.0)
+#: A step of any size that turns back along the last (cosine below CYCLE_COSINE), its size within CYCLE_RATIOS of
+#: the last's, is the SQP going round a cycle between two points: the secant puts the next one between them.
+CYCLE_COSINE = -0.8
+CYCLE_RATIOS = (0.5, 2.0)
+#: The secant's jump is at most this many times the step [-] (where a series of steps shrinking by 0.95 ends).
+MAX_JUMP = 19.0
 
 
 @dataclass(frozen=True)
@@ -204,6 +210,22 @@ def _most_missed_per_point(missed: np.ndarray, linearised: np.ndarray) -> np.nda
     picked = np.zeros_like(missed)
     picked[points * linearised.shape[1] + worst[points]] = True
     return picked
+
+
+def _secant_jump(step: np.ndarray, last_step: np.ndarray, answer_change: np.ndarray) -> np.ndarray:
+    """From the last QP's answer to the fixed point of the SQP's map as the secant through the last two iterates
+    estimates it (Anderson's acceleration with a memory of one): ``step`` and ``last_step`` are the two QPs' steps
+    (answer less linearisation point), ``answer_change`` the change between their answers. On a geometric series
+    of steps along one direction it is the end of the series; on a cycle between two points, their middle. At most
+    :data:`MAX_JUMP` times the step: near a stall the secant's estimate is unreliable."""
+    residual_change = step - last_step
+    norm = float(residual_change @ residual_change)
+    if norm == 0.0:
+        return np.zeros_like(step)
+    jump = (-float(residual_change @ step) / norm) * answer_change
+    largest = float(np.max(np.abs(jump)))
+    limit = MAX_JUMP * float(np.max(np.abs(step)))
+    return jump if largest <= limit else jump * (limit / largest)
 
 
 class _Variables:
@@ -411,8 +433,7 @@ class DirectSQP:
         point_slacks: np.ndarray | None = None
         status = "max_iter"
         iterations = 0
-        previous_step: np.ndarray | None = None
-        previous_change = math.inf
+        previous: tuple[np.ndarray, np.ndarray, float] | None = None   # the last iterate, its QP's answer and step
         for iterations in range(1, self.max_iter + 1):
             if steps.late():
                 return NLPOutcome(None, 0.0, 0.0, "deadline", iterations - 1, clock() - start_time, abandoned=True,
@@ -527,21 +548,25 @@ class DirectSQP:
                 working |= violated
             step = answer[:2 * n] - knots
             change = float(np.max(np.abs(step)))
+            linearised_at = knots
             knots = answer[:2 * n].copy()
             buffer_slack, slack = float(answer[2 * n]), float(np.max(answer[2 * n + 1:]))
             point_slacks = answer[slack_column].copy() if n_groups > 1 else None
             if change <= STEP_TOLERANCE:
                 status = "converged"
                 break
-            if previous_step is not None and change < EXTRAPOLATION_WINDOW and iterations < self.max_iter:
-                # Contracting steps along one direction: jump to where their geometric series ends (the
-                # next QP, linearised there, makes the step that is checked for convergence; the last
-                # iterate returned is always a QP's answer).
-                ratio = change / previous_change
-                cosine = float(step @ previous_step) / float(np.linalg.norm(step) * np.linalg.norm(previous_step))
-                if EXTRAPOLATION_RATIOS[0] < ratio < EXTRAPOLATION_RATIOS[1] and cosine > EXTRAPOLATION_COSINE:
-                    knots = np.clip(knots + step * (ratio / (1.0 - ratio)), lower_bounds[:2 * n], upper_bounds[:2 * n])
-                    step = None
-            previous_step, previous_change = step, change
+            if previous is not None and iterations < self.max_iter:
+                # Where the steps shrink slowly, or turn back round a cycle, the next linearisation point is where
+                # the secant through this and the last iterate puts the fixed point. The next QP, linearised there,
+                # makes the step that is checked for convergence, and the iterate returned is always a QP's answer.
+                last_step = previous[1] - previous[0]
+                ratio = change / previous[2]
+                slow = change < ACCELERATION_WINDOW and ACCELERATION_RATIOS[0] < ratio <= ACCELERATION_RATIOS[1]
+                cycling = CYCLE_RATIOS[0] < ratio < CYCLE_RATIOS[1] and float(step @ last_step) < CYCLE_COSINE * float(
+                    np.linalg.norm(step) * np.linalg.norm(last_step))
+                if slow or cycling:
+                    knots = np.clip(knots + _secant_jump(step, last_step, knots - previous[1]),
+                                    lower_bounds[:2 * n], upper_bounds[:2 * n])
+            previous = (linearised_at, answer[:2 * n], change)
         return NLPOutcome(knots.reshape(n, 2), buffer_slack, slack, status, iterations, clock() - start_time,
                           point_slacks=point_slacks, longest_step=steps.finished())
