@@ -114,7 +114,7 @@ def test_no_solve_of_the_puzzlebots_wall_loop_goes_round_to_the_iteration_limit(
     last step by its geometric series, from a ratio measured on two steps: on two of these solves the jump
     overshot, the next step came back four times as large, shrank, was extrapolated again, and so on to the limit
     of 30 iterations (a command held from the last iterate, 7-15 ms). The secant through the last two iterates
-    lands near the fixed point: 11 iterations at most."""
+    lands near the fixed point: 11 iterations at most when this was written."""
     from benchmarks.filter_latency import wall_episodes
 
     robot, dt = preset("puzzlebot"), 0.05
