@@ -48,84 +48,62 @@ from safenav.robot import PRESET_NAMES, preset
 
 #: The recorded episode of the ``slack`` scene.
 FOUND = Path(__file__).resolve().parents[1] / "tests" / "data" / "falsifier_robots.json"
-#: The module settings that take the jumps out (the SQP of full steps).
-FULL_STEPS = {"ACCELERATION_WINDOW": 0.0, "CYCLE_COSINE": -2.0}
-
-
-def recorded(make: Callable[[], MPCSafetyFilter], drive: Callable[[Callable[[], MPCSafetyFilter]], None]
-             ) -> tuple[MPCSafetyFilter, list[sqp.PlanNLP]]:
-    """The NLPs the filters ``make`` builds solve while ``drive`` runs them, and the last filter (its solver)."""
+def recorded_nlps(drive: Callable[[], Any]) -> list[sqp.PlanNLP]:
+    """The NLPs every direct SQP solves while ``drive()`` runs."""
     problems: list[sqp.PlanNLP] = []
-    built: list[MPCSafetyFilter] = []
+    solve = sqp.DirectSQP.solve
 
-    def recording() -> MPCSafetyFilter:
-        safety = make()
-        solve = safety.backend.solve
+    def solve_and_keep(self: sqp.DirectSQP, nlp: sqp.PlanNLP, *args: Any, **kwargs: Any) -> sqp.NLPOutcome:
+        problems.append(nlp)
+        return solve(self, nlp, *args, **kwargs)
 
-        def solve_and_keep(nlp: sqp.PlanNLP, *args: Any, **kwargs: Any) -> sqp.NLPOutcome:
-            problems.append(nlp)
-            return solve(nlp, *args, **kwargs)
-
-        safety.backend.solve = solve_and_keep   # type: ignore[method-assign]
-        built.append(safety)
-        return safety
-
-    drive(recording)
-    safety = built[-1]
-    del safety.backend.solve     # the solver's own method again: solving the recorded NLPs records nothing
-    return safety, problems
+    sqp.DirectSQP.solve = solve_and_keep    # type: ignore[method-assign]
+    try:
+        drive()
+    finally:
+        sqp.DirectSQP.solve = solve         # type: ignore[method-assign]
+    return problems
 
 
-def scene_problems(scene: str, robot_name: str, scenes: int, per_scene: int) -> tuple[Any, list[sqp.PlanNLP]]:
-    """The solver of ``scene`` and the NLPs its filter solves there."""
+def scene_problems(scene: str, robot_name: str, scenes: int, per_scene: int) -> tuple[sqp.DirectSQP, list[sqp.PlanNLP]]:
+    """A solver of ``scene`` (as its filter builds it) and the NLPs its filter solves there."""
     if scene == "slack":
         found = json.loads(FOUND.read_text())
         episode = Episode.from_json(next(line for key, line in found.items() if key.startswith("fast_slow_braking")))
-        problems: list[sqp.PlanNLP] = []
-        solve = sqp.DirectSQP.solve
-
-        def solve_and_keep(self: sqp.DirectSQP, nlp: sqp.PlanNLP, *args: Any, **kwargs: Any) -> sqp.NLPOutcome:
-            problems.append(nlp)
-            return solve(self, nlp, *args, **kwargs)
-
-        sqp.DirectSQP.solve = solve_and_keep    # type: ignore[method-assign]
-        try:
-            run(episode)
-        finally:
-            sqp.DirectSQP.solve = solve         # type: ignore[method-assign]
+        problems = recorded_nlps(lambda: run(episode))
         return make_filter(episode.filter, robot_spec(episode.robot), episode.dt, **episode.settings).backend, problems
     robot = preset(robot_name)
+    dt = 0.05 if scene == "cluttered" else float(scene.split()[1])
+
+    def make() -> MPCSafetyFilter:
+        return MPCSafetyFilter(robot, dt, budget=math.inf)
+
     if scene == "cluttered":
         cases = cluttered_cases(robot, scenes, per_scene, 0)
 
-        def independent(make: Callable[[], MPCSafetyFilter]) -> None:
+        def drive() -> None:
             safety = make()
             for scan, nominal in cases:
                 safety.filter(nominal, scan)
+    else:
+        def drive() -> None:
+            wall_episodes(robot, dt, make, 0, lambda *_: None)
 
-        safety, problems = recorded(lambda: MPCSafetyFilter(robot, 0.05, budget=math.inf), independent)
-        return safety.backend, problems
-    dt = float(scene.split()[1])
-    safety, problems = recorded(lambda: MPCSafetyFilter(robot, dt, budget=math.inf),
-                                lambda make: wall_episodes(robot, dt, make, 0, lambda *_: None))
-    return safety.backend, problems
+    return make().backend, recorded_nlps(drive)
 
 
-def solve_both(backend: Any, problems: Sequence[sqp.PlanNLP]) -> dict[str, list[tuple[int, str, float]]]:
+def solve_both(backend: sqp.DirectSQP, problems: Sequence[sqp.PlanNLP]) -> dict[str, list[tuple[int, str, float]]]:
     """Each problem solved with the jumps and with full steps, alternately: (iterations, status, CPU seconds)."""
     results: dict[str, list[tuple[int, str, float]]] = {"secant": [], "full steps": []}
-    saved = {name: getattr(sqp, name) for name in FULL_STEPS}
     try:
         for nlp in problems:
             for way in results:
-                for name, value in (FULL_STEPS if way == "full steps" else saved).items():
-                    setattr(sqp, name, value)
+                backend.secant = way == "secant"
                 started = time.process_time()
                 outcome = backend.solve(nlp)
                 results[way].append((outcome.iterations, outcome.status, time.process_time() - started))
     finally:
-        for name, value in saved.items():
-            setattr(sqp, name, value)
+        backend.secant = True
     return results
 
 

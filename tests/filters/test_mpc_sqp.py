@@ -4,9 +4,7 @@ plain SQP ends (tests/filters/test_mpc_replay.py checks both against casadi's sq
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -138,34 +136,21 @@ def test_no_solve_of_the_puzzlebots_wall_loop_goes_round_to_the_iteration_limit(
     assert max(outcome.iterations for outcome in outcomes) <= 15
 
 
-def test_the_secant_takes_the_slack_problems_of_a_fast_slow_braking_robot_in_fewer_iterations(monkeypatch):
+def test_the_secant_takes_the_slack_problems_of_a_fast_slow_braking_robot_in_fewer_iterations():
     """The falsifier's fast, slow-braking robot (tests/data/falsifier_robots.json: a wall seen too late to brake
     clear of it, one slack for every row of 0.12 m): with full steps its SQP goes round cycles of steps of
     0.4-1.2 m/s turning back and forth (16 of the episode's 162 solves at the limit of 30 iterations on the tree
     before). Every NLP of the episode solved again with full steps and with the secant's jumps: the jumps take
     fewer iterations in all (1172 against 1400 when this was written), and every answer they converge to is a
     fixed point of the SQP (solved again from it, it stops at its first step)."""
-    from benchmarks.falsify import Episode, make_filter, robot_spec, run
+    from benchmarks.sqp_iterations import scene_problems
 
-    found = json.loads((Path(__file__).resolve().parents[1] / "data" / "falsifier_robots.json").read_text())
-    episode = Episode.from_json(next(line for key, line in found.items() if key.startswith("fast_slow_braking")))
-    problems: list[sqp.PlanNLP] = []
-    solve = sqp.DirectSQP.solve
-
-    def recording(self, nlp, *args, **kwargs):
-        problems.append(nlp)
-        return solve(self, nlp, *args, **kwargs)
-
-    monkeypatch.setattr(sqp.DirectSQP, "solve", recording)
-    run(episode)
-    monkeypatch.setattr(sqp.DirectSQP, "solve", solve)
+    backend, problems = scene_problems("slack", "fast_slow_braking", 0, 0)
     assert len(problems) > 100
-    backend = make_filter(episode.filter, robot_spec(episode.robot), episode.dt, **episode.settings).backend
     jumping = [backend.solve(nlp) for nlp in problems]
     again = [backend.solve(nlp._replace(start=outcome.knots)) for nlp, outcome in zip(problems, jumping, strict=True)
              if outcome.status == "converged"]
-    monkeypatch.setattr(sqp, "ACCELERATION_WINDOW", 0.0)
-    monkeypatch.setattr(sqp, "CYCLE_COSINE", -2.0)
+    backend.secant = False
     full = [backend.solve(nlp) for nlp in problems]
     assert sum(outcome.iterations for outcome in jumping) < 0.9 * sum(outcome.iterations for outcome in full)
     assert len(again) >= 0.9 * len(problems)
@@ -173,11 +158,10 @@ def test_the_secant_takes_the_slack_problems_of_a_fast_slow_braking_robot_in_few
 
 
 @pytest.mark.parametrize("name, dt", [("rosbot", 0.05), ("m2wr", 0.02)])
-def test_the_secants_jumps_end_where_the_plain_sqp_ends(name, dt, monkeypatch):
+def test_the_secants_jumps_end_where_the_plain_sqp_ends(name, dt):
     safety, problems = wall_problems(name, dt, 40)
     extrapolated = [safety.backend.solve(nlp) for nlp in problems]
-    monkeypatch.setattr(sqp, "ACCELERATION_WINDOW", 0.0)
-    monkeypatch.setattr(sqp, "CYCLE_COSINE", -2.0)
+    safety.backend.secant = False
     plain = [safety.backend.solve(nlp) for nlp in problems]
     for fast, slow in zip(extrapolated, plain, strict=True):
         assert fast.status == slow.status == "converged"

@@ -305,6 +305,9 @@ class DirectSQP:
         #: The compiled kernels (:func:`safenav.filters.kernels.load`) of the clearance rows' values, QP rows and
         #: check, or ``None``: numpy (the reference; the same rows to rounding).
         self.kernels: Any = None
+        #: Whether a slow tail or a cycle jumps to the secant's fixed point (:func:`_secant_jump`); ``False``: every
+        #: step in full, the plain SQP (``benchmarks/sqp_iterations.py`` and the tests compare both).
+        self.secant = True
 
     def prepare(self, layout: PlanLayout) -> _LayoutData:
         """The cost's Hessian, the knot differences and the model of a layout, computed once (the
@@ -555,7 +558,7 @@ class DirectSQP:
             if change <= STEP_TOLERANCE:
                 status = "converged"
                 break
-            if previous is not None and iterations < self.max_iter:
+            if self.secant and previous is not None and iterations < self.max_iter:
                 # Where the steps shrink slowly, or turn back round a cycle, the next linearisation point is where
                 # the secant through this and the last iterate puts the fixed point. The next QP, linearised there,
                 # makes the step that is checked for convergence, and the iterate returned is always a QP's answer.
