@@ -685,3 +685,164 @@ def sweep_shift(points, motion, mount_x, mount_y, mount_yaw, angle_min, incremen
         shift[i, 0] = mount_x - (c * mount_x - s * mount_y) + (cm * shift_x - sm * shift_y)
         shift[i, 1] = mount_y - (s * mount_x + c * mount_y) + (sm * shift_x + cm * shift_y)
     return cos_out, sin_out, shift, unseen
+
+
+@_jit
+def cbf_screen(G, h, point, family, lower, upper, tolerance):
+    """cbf._screen: the rows some ``z`` in the box violates (their coefficients, right sides, points, families and
+    indices) and whether some row is missed by every ``z`` in the box by more than ``tolerance``."""
+    count = h.size
+    centre = np.empty(4)
+    half = np.empty(4)
+    for j in range(4):
+        centre[j] = 0.5 * (lower[j] + upper[j])
+        half[j] = 0.5 * (upper[j] - lower[j])
+    kept = np.empty(count, dtype=np.intp)
+    n = 0
+    excluded = False
+    for i in range(count):
+        middle = 0.0
+        spread = 0.0
+        for j in range(4):
+            middle += G[i, j] * centre[j]
+            spread += abs(G[i, j]) * half[j]
+        if middle + spread > h[i]:
+            kept[n] = i
+            n += 1
+        if middle - spread > h[i] + tolerance:
+            excluded = True
+    candidate = kept[:n].copy()
+    taken = np.empty((n, 4))
+    bound = np.empty(n)
+    taken_point = np.empty(n, dtype=point.dtype)
+    taken_family = np.empty(n, dtype=family.dtype)
+    for r in range(n):
+        i = candidate[r]
+        for j in range(4):
+            taken[r, j] = G[i, j]
+        bound[r] = h[i]
+        taken_point[r] = point[i]
+        taken_family[r] = family[i]
+    return taken, bound, taken_point, taken_family, candidate, excluded
+
+
+@_jit
+def cbf_qp_rows(fixed_G, fixed_h, G, h, minus_relaxed, working, with_slack):
+    """cbf.CBFSafetyFilter._assembler's QP rows: the fixed rows, then the rows ``working`` picks; with
+    ``with_slack`` a fifth column, ``-0.0`` on the fixed rows and ``minus_relaxed`` on the others."""
+    fixed = fixed_h.size
+    n = 0
+    for i in range(h.size):
+        if working[i]:
+            n += 1
+    columns = 5 if with_slack else 4
+    matrix = np.empty((fixed + n, columns))
+    bound = np.empty(fixed + n)
+    for r in range(fixed):
+        for j in range(4):
+            matrix[r, j] = fixed_G[r, j]
+        bound[r] = fixed_h[r]
+        if with_slack:
+            matrix[r, 4] = -0.0
+    r = fixed
+    for i in range(h.size):
+        if not working[i]:
+            continue
+        for j in range(4):
+            matrix[r, j] = G[i, j]
+        bound[r] = h[i]
+        if with_slack:
+            matrix[r, 4] = minus_relaxed[i]
+        r += 1
+    return matrix, bound
+
+
+@_jit
+def cbf_violated(G, h, relaxed, slack, z, working, tolerance):
+    """cbf.CBFSafetyFilter._solve_generating, a round's check: every row not in ``working`` that ``z`` misses by more
+    than ``tolerance`` (the rows ``relaxed`` marks relaxed by ``slack``) joins it; whether any did."""
+    added = False
+    for i in range(h.size):
+        if working[i]:
+            continue
+        left = G[i, 0] * z[0] + G[i, 1] * z[1] + G[i, 2] * z[2] + G[i, 3] * z[3]
+        bound = h[i] + slack if relaxed[i] else h[i]
+        if left > bound + tolerance:
+            working[i] = True
+            added = True
+    return added
+
+
+@_jit
+def cbf_answer(G, h, bound, family, point, lifted, nominal, used_rows, n_points, first_hard, near):
+    """cbf._answer: of the rows at the answer ``lifted``, the one it misses its ``bound`` most by (``NaN`` first) and
+    by how much, the soft row it misses its right side most by, the row that bound it (of the rows within ``near``
+    of their right sides, the one the lifted nominal misses most; -1 when none), and which points the rows
+    ``used_rows`` refer to and which of them hold within ``near`` of their bounds."""
+    worst = -1
+    worst_excess = -np.inf
+    soft_worst = -1
+    soft_excess = -np.inf
+    binding = -1
+    binding_excess = -np.inf
+    left = np.empty(h.size)
+    for i in range(h.size):
+        value = G[i, 0] * lifted[0] + G[i, 1] * lifted[1] + G[i, 2] * lifted[2] + G[i, 3] * lifted[3]
+        left[i] = value
+        excess = value - bound[i]
+        if worst < 0 or (not math.isnan(worst_excess) and (math.isnan(excess) or excess > worst_excess)):
+            worst, worst_excess = i, excess
+        own = value - h[i]
+        if family[i] < first_hard and (soft_worst < 0 or own > soft_excess):
+            soft_worst, soft_excess = i, own
+        if own >= -near:
+            wanted = G[i, 0] * nominal[0] + G[i, 1] * nominal[1] + G[i, 2] * nominal[2] + G[i, 3] * nominal[3] - h[i]
+            if binding < 0 or wanted > binding_excess:
+                binding, binding_excess = i, wanted
+    used = np.zeros(n_points + 1, dtype=np.bool_)      # the extra slot absorbs rows without a point (-1)
+    active = np.zeros(n_points + 1, dtype=np.bool_)
+    for i in used_rows:
+        slot = point[i] if point[i] >= 0 else n_points
+        used[slot] = True
+        if abs(left[i] - bound[i]) <= near:
+            active[slot] = True
+    return worst, worst_excess, soft_worst, binding, used[:n_points], active[:n_points]
+
+
+@_jit
+def daqp_arrays(lb, ub, h, h_lower, guess, guess_sense, equality):
+    """qp.DirectDAQP.solve's arrays: the upper and lower bounds of the simple bounds then the rows (``h_lower`` empty:
+    one-sided rows), every infinite or larger bound as +-1e30, and each one's flag (``guess_sense`` of the warm start
+    ``guess``, empty: none; ``equality`` where the bounds are equal)."""
+    n = lb.size
+    total = n + h.size
+    upper = np.empty(total)
+    lower = np.empty(total)
+    for i in range(total):
+        high = ub[i] if i < n else h[i - n]
+        low = lb[i] if i < n else (h_lower[i - n] if h_lower.size else -1e30)
+        upper[i] = 1e30 if high > 1e30 else high
+        lower[i] = -1e30 if low < -1e30 else low
+    sense = np.zeros(total, dtype=np.int32)
+    for i in range(total):
+        if lower[i] == upper[i]:
+            sense[i] = equality
+        elif guess.size:
+            sign = 1 if guess[i] > 0 else (-1 if guess[i] < 0 else 0)
+            sense[i] = guess_sense[sign + 1]
+    return upper, lower, sense
+
+
+@_jit
+def daqp_answer(x, multipliers):
+    """qp.DirectDAQP.solve's reading of an answer: whether every entry of ``x`` is finite, and the sign of each
+    constraint's multiplier (the active set, as int8)."""
+    finite = True
+    for value in x:
+        if not math.isfinite(value):
+            finite = False
+    active = np.empty(multipliers.size, dtype=np.int8)
+    for i in range(multipliers.size):
+        value = multipliers[i]
+        active[i] = 1 if value > 0.0 else (-1 if value < 0.0 else 0)
+    return finite, active

@@ -11,6 +11,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -32,7 +33,7 @@ from safenav.filters.defaults import (
     reaction_time,
 )
 from safenav.filters.perception import nearest_per_bin
-from safenav.filters.qp import QPBackend, QPData, QPOutcome, make_backend
+from safenav.filters.qp import DirectDAQP, QPBackend, QPData, QPOutcome, make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -57,6 +58,8 @@ DEFAULT_LOOKAHEAD = 0.1
 #: Room [m] the longer look-ahead's own barrier needs, over every point of a call, before it is tried
 #: again after a narrow passage (hysteresis).
 LOOKAHEAD_ROOM = 0.05
+#: A row within this of its bound at the answer is active [m/s] (it moved the command; the result's active points).
+ACTIVE_TOLERANCE = 1e-6
 MAX_GENERATION_ROUNDS = 8
 """Rounds of constraint generation before the QP takes every candidate row."""
 #: Upper limit on the rows a QP takes at once (one solve, no generation rounds); a back-end may
@@ -412,6 +415,10 @@ class CBFSafetyFilter(SafetyFilter):
         self.backend: QPBackend = make_backend(cfg.solver)
         self._steps: StepClock | None = None     # this call's QPs against the budget
         self._ready(cfg.kernels)
+        #: The decision's array work (_screen, _qp_rows, _violated, _answer): compiled, or their numpy references.
+        self._decide = self._kernels if self._kernels is not None else _NUMPY_DECISION
+        if isinstance(self.backend, DirectDAQP):
+            self.backend.kernels = self._kernels
 
     def _shape_of(self, body: BodyModel, lookahead: float) -> _Shape:
         """``body`` with its control points ``lookahead`` ahead [m], the farthest of them from the base origin
@@ -664,7 +671,9 @@ class CBFSafetyFilter(SafetyFilter):
         along = speed * (1.0 + kappa) + kappa * turn * arc_lever
         speed_part = along * reaction + along**2 / (2.0 * robot.a_max)
         turn_part = self._arm * (turn * reaction + turn**2 / (2.0 * robot.alpha_max))
-        return (np.sqrt(speed_part) + math.sqrt(turn_part)) ** 2 + 1e-9
+        # (Python floats for one distance: numpy's per-call overhead would dominate.)
+        root = np.sqrt(speed_part) if isinstance(speed_part, np.ndarray) else math.sqrt(speed_part)
+        return (root + math.sqrt(turn_part)) ** 2 + 1e-9
 
     def _own_rate(self, velocity: np.ndarray | None) -> float:
         """Largest share of its own barrier a pair may lose per period.
@@ -686,12 +695,13 @@ class CBFSafetyFilter(SafetyFilter):
         """
         travel = period * self._approach_bound(lower, upper, velocity, period, distance)
         reach = (1.0 - self.gamma) * min_barrier + travel
+        larger = np.maximum if isinstance(reach, np.ndarray) else max   # Python floats for one distance
         own = self._own_rate(velocity)
         if own < 1.0:
-            reach = np.maximum(reach, travel / own)
-        reach = np.maximum(reach, 0.0) + 1e-9
+            reach = larger(reach, travel / own)
+        reach = larger(reach, 0.0) + 1e-9
         if velocity is not None:
-            reach = np.maximum(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
+            reach = larger(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
         return reach
 
     @staticmethod
@@ -725,26 +735,16 @@ class CBFSafetyFilter(SafetyFilter):
         q = np.zeros(4 if stage is None else 5)
         q[:2] = -self._P[:2, :2] @ self._target(u_nom)
         P, lower, upper = self._P, problem.lower, problem.upper
-        h, minus_relaxed = rows.h, None
+        h, minus_relaxed = rows.h, _NO_RELAXATION
         if stage is not None:
             h, relaxed = stage
             minus_relaxed = -relaxed.astype(float)
             P, q[4] = self._P_slack, SLACK_LINEAR_WEIGHT
             lower, upper = np.append(lower, 0.0), np.append(upper, np.inf)
-        abs_rows = self._abs_rows
-        fixed = len(abs_rows)
+        abs_rows, with_slack, qp_rows = self._abs_rows, stage is not None, self._decide.cbf_qp_rows
 
         def assemble(mask: np.ndarray) -> QPData:
-            index = np.flatnonzero(mask)
-            G = np.empty((fixed + index.size, q.size))
-            G[:fixed, :4] = abs_rows.G
-            G[fixed:, :4] = rows.G[index]
-            bound = np.empty(fixed + index.size)
-            bound[:fixed] = abs_rows.h
-            bound[fixed:] = h[index]
-            if minus_relaxed is not None:
-                G[:fixed, 4] = -0.0   # as -relaxed over the auxiliary rows (bit for bit the same QP)
-                G[fixed:, 4] = minus_relaxed[index]
+            G, bound = qp_rows(abs_rows.G, abs_rows.h, rows.G, h, minus_relaxed, mask, with_slack)
             return QPData(P, q, G, bound, lower, upper)
 
         return assemble
@@ -907,14 +907,16 @@ class CBFSafetyFilter(SafetyFilter):
         Raises :class:`_OutOfTime` when the next QP cannot end within the call's budget."""
         rows, points = problem.rows, problem.points
         lower, upper = problem.limits
-        largest, smallest = families.box_range(rows.G, problem.lower, problem.upper)
-        candidate = np.flatnonzero(largest > rows.h)     # the rows some command in the box violates (_prune)
+        G, h, row_point, row_family = _plain_rows(rows)
+        # The rows some command in the box violates (_prune), and whether one is missed by every command in it.
+        *taken, candidate, excluded = self._decide.cbf_screen(G, h, row_point, row_family, problem.lower,
+                                                              problem.upper, VERIFY_TOLERANCE)
         if candidate.size == 0:
             # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
             u = np.clip(self._target(u_nom), lower, upper)
-            return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK, reason=self._binding(
-                u, u_nom, rows, np.full(len(rows), -np.inf), points, problem), **details)
-        cand = rows.take(candidate)
+            return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK,
+                                reason=self._binding(u, u_nom, rows, -1, points, problem), **details)
+        cand = families.Rows(*taken)
         direct_rows = min(self.backend.direct_rows, DIRECT_ROWS)
         if candidate.size <= direct_rows:
             working = np.ones(candidate.size, dtype=bool)
@@ -926,7 +928,7 @@ class CBFSafetyFilter(SafetyFilter):
             working = cand.point < 0
             working[point_rows[chosen]] = True
         initial = working.copy()
-        if self._box_excludes(smallest, rows.h):
+        if excluded:   # no answer, and no solve is needed to say so (_screen)
             z, solve_time = None, 0.0
         else:
             z, working, solve_time, _ = self._solve_generating(u_nom, cand, working, problem)
@@ -956,7 +958,7 @@ class CBFSafetyFilter(SafetyFilter):
             z, slack = z[:4], max(float(z[4]), 0.0)
             if slack > VERIFY_TOLERANCE:
                 status = FilterStatus.SLACK
-        bound = rows.h
+        bound = h
         if tier is not None:
             stage_h, stage_relaxed = self._stage(rows, problem, tier)
             bound = stage_h + np.where(stage_relaxed, slack, 0.0)
@@ -967,32 +969,26 @@ class CBFSafetyFilter(SafetyFilter):
             u[0] = max(u[0], min(-problem.blind_speed, upper[0]))
         if frontier.forward:
             u[0] = min(u[0], max(problem.blind_speed, lower[0]))
-        lifted = self._lifted(u, problem)
-        residual = rows.G @ lifted - bound
-        if not np.all(residual <= VERIFY_TOLERANCE):
-            worst = int(np.argmax(residual))
+        rows_used = candidate[working]
+        worst, excess, soft_worst, binding, used, active = self._decide.cbf_answer(
+            G, h, _plain(bound), row_family, row_point, self._lifted(u, problem),
+            self._lifted(np.clip(u_nom, lower, upper), problem), rows_used, len(points), families.FIRST_HARD,
+            ACTIVE_TOLERANCE)
+        if not excess <= VERIFY_TOLERANCE:   # (NaN too)
             return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
                                f"QP answer from {self.backend.name} violates a {self._family(rows, worst)} row by "
-                               f"{residual[worst]:.3g} m/s", solver=self.backend.name, solve_time=solve_time,
+                               f"{excess:.3g} m/s", solver=self.backend.name, solve_time=solve_time,
                                period=period, **details)
         if status is FilterStatus.SLACK:
-            worst = int(np.argmax(np.where(rows.hard, -np.inf, rows.G @ lifted - rows.h)))
-            reason = self._slack_reason(rows, worst, points, problem.min_barrier, slack * period, tier)
+            reason = self._slack_reason(rows, max(soft_worst, 0), points, problem.min_barrier, slack * period, tier)
         else:
-            reason = self._binding(u, u_nom, rows, rows.G @ lifted - rows.h, points, problem)
+            reason = self._binding(u, u_nom, rows, binding, points, problem)
             if problem.min_barrier < 0.0:
                 status = FilterStatus.RECOVERING
                 how = ("moving back out" if tier is None else
                        "holding its distance (no command in the box leaves at the recovery rate)")
                 reason = Reason("barrier", f"inside the margin (barrier {problem.min_barrier:.3f} m); {how}",
                                 _nearest(points, problem.barrier))
-        rows_used = candidate[working]
-        row_points = rows.point[rows_used]
-        used = np.zeros(len(points) + 1, dtype=bool)   # the extra slot absorbs rows without a point (-1)
-        used[row_points] = True
-        active = np.zeros(len(points) + 1, dtype=bool)
-        active[row_points[np.abs(residual[rows_used]) <= 1e-6]] = True
-        used, active = used[:-1], active[:-1]
         return FilterResult(
             u=u, u_nom=u_nom, status=status, reason=reason, n_constraints=int(working.sum()),
             constraint_points=points[used], active=np.flatnonzero(active[used]),
@@ -1024,9 +1020,11 @@ class CBFSafetyFilter(SafetyFilter):
         solve_time = 0.0
         outcome = None
         stage = None
+        h, relaxed = rows.h, np.zeros(len(rows), dtype=bool)
         if slack is not None:   # the stage's right sides and relaxed rows, the same in every round
-            stage = stage_h, relaxed = self._stage(rows, problem, slack)
+            stage = h, relaxed = self._stage(rows, problem, slack)
         assemble = self._assembler(u_nom, rows, problem, stage)
+        violated = self._decide.cbf_violated
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
             if round_index == MAX_GENERATION_ROUNDS:
                 working[:] = True
@@ -1035,20 +1033,11 @@ class CBFSafetyFilter(SafetyFilter):
             z = outcome.x
             if z is None:
                 return None, working, solve_time, outcome.status
-            bound = rows.h if slack is None else stage_h + np.where(relaxed, z[4], 0.0)
-            violated = (rows.G @ z[:4] > bound + 0.1 * VERIFY_TOLERANCE) & ~working
-            if not violated.any():
+            # every row the answer misses joins the working set
+            if not violated(rows.G, h, relaxed, float(z[4]) if slack is not None else 0.0, _plain(z), working,
+                            0.1 * VERIFY_TOLERANCE):
                 return z, working, solve_time, outcome.status
-            working |= violated
         return None, working, solve_time, "constraint generation did not settle"
-
-    @staticmethod
-    def _box_excludes(smallest: np.ndarray, h: np.ndarray) -> bool:
-        """Whether some row is missed by every ``z`` in the box (``smallest``: each row's smallest left side over
-        the box) by more than the check's tolerance: then the QP has no answer, and no solve is needed to say so
-        (inside the margin, the deepest point's recovery row under the acceleration limits, the usual cause of a
-        first QP without answer)."""
-        return bool(np.any(smallest > h + VERIFY_TOLERANCE))
 
     def _hard_feasible(self, hard: families.Rows, problem: _Problem) -> bool:
         """Whether some command in the box satisfies every hard row (an LP, solved as a tiny QP, unless the
@@ -1088,17 +1077,14 @@ class CBFSafetyFilter(SafetyFilter):
         return Reason(family, f"cannot brake in time under the acceleration limits; {which} relaxed by "
                               f"{slack:.4f} m", point)
 
-    def _binding(self, u: np.ndarray, u_nom: np.ndarray, rows: families.Rows, residual: np.ndarray,
-                 points: np.ndarray, problem: _Problem) -> Reason | None:
-        """The constraint that bound ``u`` (``None`` when ``u`` is ``u_nom``)."""
+    def _binding(self, u: np.ndarray, u_nom: np.ndarray, rows: families.Rows, index: int, points: np.ndarray,
+                 problem: _Problem) -> Reason | None:
+        """The constraint that bound ``u`` (``None`` when ``u`` is ``u_nom``): the row ``index`` (of the rows active at
+        ``u``, the one the nominal violates most: the one that moved the command; :func:`_answer`), or with ``-1``
+        (no row active) the velocity limits or the acceleration limits."""
         if u[0] == u_nom[0] and u[1] == u_nom[1]:
             return None
-        active = np.flatnonzero(residual >= -1e-6)
-        if active.size:
-            # The active row the nominal violates most is the one that moved the command.
-            nominal_residual = rows.G[active] @ self._lifted(np.clip(u_nom, *problem.limits), problem) \
-                - rows.h[active]
-            index = int(active[int(np.argmax(nominal_residual))])
+        if index >= 0:
             family = self._family(rows, index)
             text = _blind_text(problem.blind_speed) if family == "blind" else _ROW_TEXT[family]
             return Reason(family, text, _point(points, int(rows.point[index])))
@@ -1128,3 +1114,94 @@ def _point(points: np.ndarray, index: int) -> tuple[float, float] | None:
 
 def _nearest(points: np.ndarray, barrier: np.ndarray) -> tuple[float, float] | None:
     return None if barrier.size == 0 else _point(points, int(np.argmin(barrier)))
+
+
+# ---------------------------------------------------------------- the decision's array work (numpy references)
+# Each has a compiled twin of the same name with the prefix cbf_ in safenav.filters._compiled_rows (the filter uses
+# those with kernels; tests/filters/test_kernels.py checks both give the same answers).
+
+_NO_RELAXATION = np.zeros(0)
+
+
+def _plain(array: np.ndarray) -> np.ndarray:
+    return kernels.plain(array)
+
+
+def _plain_rows(rows: families.Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``rows``' arrays as the compiled decision takes them (float64 and intp, C-contiguous, writable)."""
+    point, family = rows.point, rows.family
+    if not (point.dtype == np.intp and point.flags.c_contiguous and point.flags.writeable):
+        point = np.array(point, dtype=np.intp)
+    if not (family.dtype == np.intp and family.flags.c_contiguous and family.flags.writeable):
+        family = np.array(family, dtype=np.intp)
+    return _plain(rows.G), _plain(rows.h), point, family
+
+
+def _screen(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: np.ndarray, lower: np.ndarray,
+            upper: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                          bool]:
+    """The rows some ``z`` in the box ``lower <= z <= upper`` violates (their ``G``, ``h``, points, families and
+    indices: the others never bind), and whether some row is missed by every ``z`` in the box by more than
+    ``tolerance`` [m/s]: then the QP has no answer, and no solve is needed to say so (inside the margin, the deepest
+    point's recovery row under the acceleration limits, the usual cause of a first QP without answer)."""
+    largest, smallest = families.box_range(G, lower, upper)
+    candidate = np.flatnonzero(largest > h)
+    return (G[candidate], h[candidate], point[candidate], family[candidate], candidate,
+            bool(np.any(smallest > h + tolerance)))
+
+
+def _qp_rows(fixed_G: np.ndarray, fixed_h: np.ndarray, G: np.ndarray, h: np.ndarray, minus_relaxed: np.ndarray,
+             working: np.ndarray, with_slack: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A QP's rows and right sides: the fixed rows (the auxiliaries'), then the rows of ``G``, ``h`` that ``working``
+    picks; ``with_slack``: a fifth column, ``-0.0`` on the fixed rows (bit for bit the QP of ``-relaxed`` over them)
+    and ``minus_relaxed`` on the others."""
+    index = np.flatnonzero(working)
+    fixed = fixed_h.size
+    matrix = np.empty((fixed + index.size, 5 if with_slack else 4))
+    matrix[:fixed, :4] = fixed_G
+    matrix[fixed:, :4] = G[index]
+    bound = np.empty(fixed + index.size)
+    bound[:fixed] = fixed_h
+    bound[fixed:] = h[index]
+    if with_slack:
+        matrix[:fixed, 4] = -0.0
+        matrix[fixed:, 4] = minus_relaxed[index]
+    return matrix, bound
+
+
+def _violated(G: np.ndarray, h: np.ndarray, relaxed: np.ndarray, slack: float, z: np.ndarray, working: np.ndarray,
+              tolerance: float) -> bool:
+    """Adds to ``working`` (in place) every row ``z`` misses by more than ``tolerance`` [m/s], the rows ``relaxed``
+    marks relaxed by ``slack``; whether it added any."""
+    violated = (G @ z[:4] > h + np.where(relaxed, slack, 0.0) + tolerance) & ~working
+    working |= violated
+    return bool(violated.any())
+
+
+def _answer(G: np.ndarray, h: np.ndarray, bound: np.ndarray, family: np.ndarray, point: np.ndarray,
+            lifted: np.ndarray, nominal: np.ndarray, used_rows: np.ndarray, n_points: int, first_hard: int,
+            near: float) -> tuple[int, float, int, int, np.ndarray, np.ndarray]:
+    """The rows at the answer ``lifted`` (``z``): the row it misses its ``bound`` most by (the first ``NaN`` first; -1
+    without rows) and by how much, the soft row (family below ``first_hard``) it misses its right side ``h`` most by
+    (-1 when none), the row that bound it (of the rows within ``near`` of ``h``, the one the lifted ``nominal``
+    misses most: the one that moved the command; -1 when none), and of the ``n_points`` points which the rows
+    ``used_rows`` refer to and which of those hold within ``near`` of their bounds."""
+    left = G @ lifted
+    residual = left - bound
+    worst = int(np.argmax(residual)) if residual.size else -1
+    excess = float(residual[worst]) if residual.size else -math.inf
+    own = left - h
+    soft = family < first_hard
+    soft_worst = int(np.argmax(np.where(soft, own, -np.inf))) if soft.any() else -1
+    near_rows = np.flatnonzero(own >= -near)
+    binding = int(near_rows[int(np.argmax(G[near_rows] @ nominal - h[near_rows]))]) if near_rows.size else -1
+    row_points = point[used_rows]
+    used = np.zeros(n_points + 1, dtype=bool)   # the extra slot absorbs rows without a point (-1)
+    used[row_points] = True
+    active = np.zeros(n_points + 1, dtype=bool)
+    active[row_points[np.abs(residual[used_rows]) <= near]] = True
+    return worst, excess, soft_worst, binding, used[:-1], active[:-1]
+
+
+_NUMPY_DECISION = SimpleNamespace(cbf_screen=_screen, cbf_qp_rows=_qp_rows, cbf_violated=_violated, cbf_answer=_answer)
+"""The numpy references of the compiled decision (the filter's ``_decide`` without kernels)."""

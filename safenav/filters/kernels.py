@@ -2,7 +2,7 @@
 
 The filters' numpy code works on arrays of a few dozen points; a call then spends most of its time in
 numpy's per-operation overhead (about a hundred operations a call), not in arithmetic. With numba
-installed (``pip install "safenav[fast]"``) nine pieces run as compiled loops instead
+installed (``pip install "safenav[fast]"``) eleven pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
 * the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
@@ -21,6 +21,11 @@ installed (``pip install "safenav[fast]"``) nine pieces run as compiled loops in
   :func:`~safenav.filters.body.inside_polygon`, :class:`~safenav.filters.ZonesFilter`);
 * the working sets' nearest point per angular bin (``nearest_per_bin``,
   :func:`~safenav.filters.perception.nearest_per_bin`: the MPC's point slots, the CBF's first working set);
+* the CBF's decision around its QPs (``cbf_screen``, ``cbf_qp_rows``, ``cbf_violated``, ``cbf_answer``: the rows that
+  can bind, each QP's rows, the rows an answer misses, the answer's check and the row that bound it; the numpy
+  references are :mod:`safenav.filters.cbf`'s ``_screen``, ``_qp_rows``, ``_violated`` and ``_answer``);
+* DAQP's arrays (``daqp_arrays``: the bounds of the simple bounds and rows and their flags) and the reading of its
+  answer (``daqp_answer``), :class:`~safenav.filters.qp.DirectDAQP`'s for either filter;
 * where a turning lidar was at each beam of a scan of known age (``sweep_poses``,
   :func:`~safenav.filters.perception.sweep_poses`), and from which beam's pose the memory looks at each remembered
   point (``sweep_shift``, :func:`~safenav.filters.perception.sweep_shift`).
@@ -83,7 +88,8 @@ def _build() -> SimpleNamespace:
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
         "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
-        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift")})
+        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift", "cbf_screen",
+        "cbf_qp_rows", "cbf_violated", "cbf_answer", "daqp_arrays", "daqp_answer")})
     _warm(kernels)
     return kernels
 
@@ -99,6 +105,17 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.obstacle_rows(points, uncertainty, control, offsets, per_point, 1.0, 0.5, 0.1, 0.01, 0.2, 0.2, 0.05,
                           float(per_point.min()), True, np.array([0.2, 0.1]), 1.0, 2.0, 0.05, 0.01, 1.0, box[0], box[1],
                           0.5, z[0], z[1])
+    # the CBF's decision: two rows, one used
+    G, h, index = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]]), np.array([0.3, 0.2]), np.arange(2)
+    kernels.cbf_screen(G, h, index, index, z[0], z[1], 1e-6)
+    working = np.ones(2, dtype=np.bool_)
+    kernels.cbf_qp_rows(G, h, G, h, np.zeros(2), working, True)
+    kernels.cbf_violated(G, h, working, 0.0, np.zeros(5), working, 1e-7)
+    kernels.cbf_answer(G, h, h, index, index, np.zeros(4), np.zeros(4), index, 2, 3, 1e-6)
+    # DAQP's arrays: one-sided and two-sided rows, cold and warm
+    kernels.daqp_arrays(z[0], z[1], h, np.zeros(0), np.zeros(0, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)
+    kernels.daqp_arrays(z[0], z[1], h, -h, np.zeros(6, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)
+    kernels.daqp_answer(np.zeros(4), np.zeros(6))
     kernels.shadow_beams(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 2.0,
                          0.05, 0.3, True)
     kernels.seen_again(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 10.0,

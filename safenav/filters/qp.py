@@ -18,6 +18,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
+from safenav._kernels import plain
 from safenav.errors import UnknownName
 
 __all__ = [
@@ -42,6 +43,14 @@ DAQP_ACTIVE, DAQP_LOWER, DAQP_EQUALITY = 1, 2, 5
 DAQP_CYCLING, DAQP_ITERATION_LIMIT = -2, -4
 #: DAQP's flag for each warm-start entry of :attr:`QPData.guess` (-1, 0, 1), indexed by the entry plus one.
 _GUESS_SENSE = np.array([DAQP_ACTIVE | DAQP_LOWER, 0, DAQP_ACTIVE], dtype=np.int32)
+_NO_BOUNDS, _NO_GUESS = np.zeros(0), np.zeros(0, dtype=np.int8)   # no lower bounds on the rows, no warm start
+
+
+def _int8(array: np.ndarray) -> np.ndarray:
+    """A warm start as the kernels take it (C-contiguous, writable int8)."""
+    if array.dtype == np.int8 and array.flags.c_contiguous and array.flags.writeable:
+        return array
+    return np.array(np.sign(array), dtype=np.int8)
 
 
 class QPOutcome(NamedTuple):
@@ -271,9 +280,51 @@ class DirectDAQP:
         self._solve = daqp.solve
         self.primal_tol = primal_tol
         self.iter_limit = iter_limit
+        #: The compiled kernels (:func:`safenav.filters.kernels.load`) that build DAQP's arrays and read its answer
+        #: (``daqp_arrays``, ``daqp_answer``), or ``None``: numpy (the reference; the same arrays). The filters set
+        #: their own.
+        self.kernels: Any = None
 
     def solve(self, qp: QPData) -> QPOutcome:
         start = time.perf_counter()
+        if self.kernels is not None:
+            upper, lower, sense = self.kernels.daqp_arrays(
+                plain(qp.lb), plain(qp.ub), plain(qp.h), _NO_BOUNDS if qp.h_lower is None else plain(qp.h_lower),
+                _NO_GUESS if qp.guess is None else _int8(qp.guess), _GUESS_SENSE, DAQP_EQUALITY)
+        else:
+            upper, lower, sense = self._arrays(qp)
+        # DAQP takes writable C-ordered float arrays (it copies nothing); copy only what is not.
+        P, q, G = plain(qp.P), plain(qp.q), plain(qp.G)
+        x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
+                                           iter_limit=self.iter_limit)
+        if exitflag in (DAQP_CYCLING, DAQP_ITERATION_LIMIT):
+            # Near-degenerate vertices (many rows through one point, e.g. a stopped base) can make the
+            # active-set iteration cycle, or a warm start wander, at a feasibility tolerance near
+            # round-off: solve again from a cold start, then with the tolerance ten and a hundred times
+            # looser (1e-8 by default: still a hundred times below every filter's own check of the answer;
+            # the m2wr's MPC standing at its margin cycled at 1e-10 and 1e-9 even from cold).
+            cold = np.where(sense == DAQP_EQUALITY, DAQP_EQUALITY, 0).astype(np.int32)
+            for tolerance in (self.primal_tol, 10.0 * self.primal_tol, 100.0 * self.primal_tol):
+                x, _, exitflag, info = self._solve(P, q, G, upper, lower, cold.copy(), primal_tol=tolerance,
+                                                   iter_limit=self.iter_limit)
+                if exitflag in (1, 2):
+                    break
+        elapsed = time.perf_counter() - start
+        # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
+        if exitflag not in (1, 2):
+            return QPOutcome(None, f"exitflag {exitflag}", elapsed)
+        if self.kernels is not None:
+            finite, active = self.kernels.daqp_answer(plain(x), plain(info["lam"]))
+        else:
+            finite = bool(np.isfinite(x).all())
+            active = np.sign(info["lam"]).astype(np.int8) if finite else None
+        if not finite:
+            return QPOutcome(None, f"exitflag {exitflag}", elapsed)
+        return QPOutcome(x, "optimal", elapsed, active)
+
+    @staticmethod
+    def _arrays(qp: QPData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """DAQP's upper and lower bounds (the simple bounds, then the rows; +-1e30 for infinity) and their flags."""
         n_vars = qp.lb.size
         # Simple bounds first, then the rows (DAQP's convention); +-1e30 stands for infinity. Filled in
         # place, without temporaries: a control call's QPs are small, and building these arrays cost
@@ -293,28 +344,7 @@ class DirectDAQP:
         equal = lower == upper
         if equal.any():
             sense[equal] = DAQP_EQUALITY
-        # DAQP takes writable C-ordered float arrays (it copies nothing); copy only what is not.
-        P, q, G = (array if array.flags.writeable and array.flags.c_contiguous and array.dtype == np.float64
-                   else np.array(array, dtype=np.float64) for array in (qp.P, qp.q, qp.G))
-        x, _, exitflag, info = self._solve(P, q, G, upper, lower, sense, primal_tol=self.primal_tol,
-                                           iter_limit=self.iter_limit)
-        if exitflag in (DAQP_CYCLING, DAQP_ITERATION_LIMIT):
-            # Near-degenerate vertices (many rows through one point, e.g. a stopped base) can make the
-            # active-set iteration cycle, or a warm start wander, at a feasibility tolerance near
-            # round-off: solve again from a cold start, then with the tolerance ten and a hundred times
-            # looser (1e-8 by default: still a hundred times below every filter's own check of the answer;
-            # the m2wr's MPC standing at its margin cycled at 1e-10 and 1e-9 even from cold).
-            cold = np.where(sense == DAQP_EQUALITY, DAQP_EQUALITY, 0).astype(np.int32)
-            for tolerance in (self.primal_tol, 10.0 * self.primal_tol, 100.0 * self.primal_tol):
-                x, _, exitflag, info = self._solve(P, q, G, upper, lower, cold.copy(), primal_tol=tolerance,
-                                                   iter_limit=self.iter_limit)
-                if exitflag in (1, 2):
-                    break
-        elapsed = time.perf_counter() - start
-        # exitflag 1: optimal; 2: optimal with soft constraints; negative: infeasible, cycling, ...
-        if exitflag not in (1, 2) or not np.isfinite(x).all():
-            return QPOutcome(None, f"exitflag {exitflag}", elapsed)
-        return QPOutcome(x, "optimal", elapsed, np.sign(info["lam"]).astype(np.int8))
+        return upper, lower, sense
 
 
 def make_backend(name: str) -> QPBackend:

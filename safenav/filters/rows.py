@@ -34,6 +34,7 @@ import numpy as np
 
 __all__ = [
     "FAMILIES",
+    "FIRST_HARD",
     "Geometry",
     "Rows",
     "abs_rows",
@@ -57,7 +58,8 @@ FAMILIES = ("barrier", "braking", "sweep", "gap", "blind", "abs")
 """Row family names, in the order :func:`stack` keeps them."""
 HARD_FAMILIES = frozenset({"gap", "blind", "abs"})
 """Families that slack never relaxes (the last ones of :data:`FAMILIES`)."""
-_FIRST_HARD = min(FAMILIES.index(name) for name in HARD_FAMILIES)
+FIRST_HARD = min(FAMILIES.index(name) for name in HARD_FAMILIES)
+"""Index in :data:`FAMILIES` of the first hard family: a row is hard when its family is at least this."""
 
 
 class Rows(NamedTuple):
@@ -75,7 +77,7 @@ class Rows(NamedTuple):
     @property
     def hard(self) -> np.ndarray:
         """``(k,)`` mask of the rows slack may never relax."""
-        return self.family >= _FIRST_HARD
+        return self.family >= FIRST_HARD
 
     def __len__(self) -> int:
         return int(self.h.size)

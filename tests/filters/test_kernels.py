@@ -409,6 +409,114 @@ def test_the_compiled_nearest_per_bin_is_the_numpy_one():
     assert ties > 100
 
 
+def _random_rows(rng: np.random.Generator, count: int) -> tuple[np.ndarray, ...]:
+    """Random rows over ``z = (v, omega, t_v, t_omega)`` as the CBF's decision takes them: columns that are often 0,
+    repeated rows, points (-1: none) and families (hard from 3 on)."""
+    G = rng.normal(0.0, 1.0, (count, 4)) * (rng.random((count, 4)) < 0.7)
+    if count > 3:
+        G[count // 2] = G[0]
+    h = rng.normal(0.0, 0.5, count)
+    point = rng.integers(-1, 40, count).astype(np.intp)
+    family = rng.integers(0, 6, count).astype(np.intp)
+    return G, h, point, family
+
+
+def test_the_compiled_decision_is_the_numpy_one():
+    """The CBF's decision around its QPs, compiled, gives its numpy references' answers (``cbf._screen``,
+    ``_qp_rows``, ``_violated``, ``_answer``): the same rows, QP rows (the slack column's -0.0 bit for bit), working
+    sets, worst rows, binding rows and points, on random rows, boxes, answers and masks, with NaN in some answers."""
+    from safenav.filters import cbf
+    from safenav.filters.rows import FIRST_HARD
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(11)
+    excluded = bound_rows = nan = 0
+    for trial in range(1500):
+        count = int(rng.integers(0, 120))
+        G, h, point, family = _random_rows(rng, count)
+        lower = -rng.random(4)
+        upper = rng.random(4)
+        want, got = cbf._screen(G, h, point, family, lower, upper, 1e-6), compiled.cbf_screen(
+            G, h, point, family, lower, upper, 1e-6)
+        for a, b in zip(want, got, strict=True):
+            np.testing.assert_array_equal(a, b)
+        excluded += want[-1]
+        working = rng.random(count) < 0.5
+        minus_relaxed = -(rng.random(count) < 0.5).astype(float)
+        fixed_G, fixed_h = rng.normal(size=(4, 4)), rng.normal(size=4)
+        for with_slack in (False, True):
+            want, got = (function(fixed_G, fixed_h, G, h, minus_relaxed, working, with_slack)
+                         for function in (cbf._qp_rows, compiled.cbf_qp_rows))
+            for a, b in zip(want, got, strict=True):
+                np.testing.assert_array_equal(a, b)
+                np.testing.assert_array_equal(np.signbit(a), np.signbit(b))
+        z = rng.normal(0.0, 0.5, 5)
+        relaxed = rng.random(count) < 0.5
+        mask_a, mask_b = working.copy(), working.copy()
+        added = cbf._violated(G, h, relaxed, float(z[4]), z, mask_a, 1e-7), compiled.cbf_violated(
+            G, h, relaxed, float(z[4]), z, mask_b, 1e-7)
+        assert added[0] == added[1]
+        np.testing.assert_array_equal(mask_a, mask_b)
+        lifted, nominal = rng.normal(0.0, 0.5, 4), rng.normal(0.0, 0.5, 4)
+        if trial % 10 == 0 and count:
+            lifted[int(rng.integers(0, 4))] = np.nan
+            nan += 1
+        bound = h + np.where(relaxed, 0.1, 0.0)
+        if count and trial % 3 == 0:   # rows held exactly at the answer, and within the tolerance of it
+            held = rng.random(count) < 0.3
+            bound[held] = h[held] = G[held] @ lifted + rng.choice([0.0, 5e-7, -5e-7], int(held.sum()))
+        used_rows = np.flatnonzero(working)
+        want = cbf._answer(G, h, bound, family, point, lifted, nominal, used_rows, 40, FIRST_HARD, 1e-6)
+        got = compiled.cbf_answer(G, h, bound, family, point, lifted, nominal, used_rows, 40, FIRST_HARD, 1e-6)
+        assert want[0] == got[0] and want[2:4] == got[2:4], (trial, want[:4], got[:4])
+        np.testing.assert_allclose(want[1], got[1], rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(want[4], got[4])
+        np.testing.assert_array_equal(want[5], got[5])
+        bound_rows += want[3] >= 0
+    assert excluded > 100 and bound_rows > 100 and nan > 50
+
+
+def test_the_compiled_daqp_arrays_are_the_numpy_ones():
+    """DAQP's arrays built by the kernel are ``DirectDAQP``'s numpy ones bit for bit (infinite and huge bounds,
+    one- and two-sided rows, equalities, warm starts of any integer type), and its answers the same."""
+    from safenav.filters.qp import DirectDAQP, QPData
+
+    reference, fast = DirectDAQP(), DirectDAQP()
+    fast.kernels = kernels.load()
+    rng = np.random.default_rng(12)
+    equalities = solved = 0
+    for trial in range(1000):
+        n, m = int(rng.integers(1, 8)), int(rng.integers(0, 30))
+        lb, ub = -rng.random(n) - 0.1, rng.random(n) + 0.1
+        lb[rng.random(n) < 0.2], ub[rng.random(n) < 0.2] = -np.inf, 2e30
+        G = rng.normal(size=(m, n))
+        h = G @ rng.uniform(lb.clip(-1.0), ub.clip(None, 1.0)) + rng.random(m)
+        h[rng.random(m) < 0.1] = np.inf
+        h_lower = None
+        if trial % 2:
+            h_lower = np.where(np.isfinite(h), h, 1.0) - rng.random(m) * 2.0
+            h_lower[rng.random(m) < 0.2] = -np.inf
+            equal = rng.random(m) < 0.1
+            h_lower[equal] = h[equal] = np.where(np.isfinite(h[equal]), h[equal], 1.0)
+            h_lower = np.minimum(h_lower, h)
+        guess = None if trial % 3 == 0 else rng.integers(-1, 2, n + m).astype(np.int8 if trial % 3 == 1 else int)
+        qp = QPData(np.diag(rng.random(n) + 0.1), rng.normal(size=n), G, h, lb, ub, h_lower, guess)
+        want = DirectDAQP._arrays(qp)
+        got = fast.kernels.daqp_arrays(lb, ub, h, np.zeros(0) if h_lower is None else h_lower,
+                                       np.zeros(0, np.int8) if guess is None else np.sign(guess).astype(np.int8),
+                                       np.array([3, 0, 1], dtype=np.int32), 5)
+        for a, b in zip(want, got, strict=True):
+            np.testing.assert_array_equal(a, b)
+        equalities += int(np.sum(want[2] == 5))
+        a, b = reference.solve(qp), fast.solve(qp)
+        assert (a.x is None) == (b.x is None) and a.status == b.status
+        if a.x is not None:
+            np.testing.assert_array_equal(a.x, b.x)
+            np.testing.assert_array_equal(a.active, b.active)
+            solved += 1
+    assert equalities > 100 and solved > 300
+
+
 def test_the_compiled_sweep_poses_are_the_numpy_ones():
     """Where a turning lidar was at each beam: the compiled loop gives ``perception.sweep_poses``'s poses exactly, for
     sweeps forwards and backwards in the beams, ages from now to past every part, straight and turning parts, and no
@@ -496,6 +604,7 @@ def test_no_call_compiles_a_kernel_again():
     side = robot.radius + 0.05
     scene = Scene.of(Segment((0.16, side), (4.0, side)), Segment((1.0, -1.0), (1.0, -0.3)))
     filters = [CBFSafetyFilter(robot, 0.05), CBFSafetyFilter(robot, 0.05, body="cover"),
+               CBFSafetyFilter(robot, 0.05, body="polygon"),
                MPCSafetyFilter(robot, 0.05), MPCSafetyFilter(robot, 0.05, reference="cbf"), ZonesFilter(robot, 0.05)]
     rng = np.random.default_rng(2)
     for safety in filters:

@@ -35,7 +35,7 @@ from safenav.filters.mpc.plan import (
 )
 from safenav.filters.mpc.sqp import DirectSQP, PlanCost, PlanNLP, PlanSolver
 from safenav.filters.perception import Frontier, nearest_per_bin
-from safenav.filters.qp import make_backend
+from safenav.filters.qp import DirectDAQP, make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
 
@@ -323,6 +323,8 @@ class MPCSafetyFilter(SafetyFilter):
         self._ready(cfg.kernels)
         if isinstance(self.backend, DirectSQP):
             self.backend.kernels = self._kernels
+            if isinstance(self.backend.qp, DirectDAQP):
+                self.backend.qp.kernels = self._kernels
         self._commands: np.ndarray | None = None
         # Whether the last solved answer needed more than SPLIT_SLACK: the next call solves with a slack per point
         # at once (the wall it could not keep clear is still there).
