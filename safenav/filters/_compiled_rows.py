@@ -846,3 +846,28 @@ def daqp_answer(x, multipliers):
         value = multipliers[i]
         active[i] = 1 if value > 0.0 else (-1 if value < 0.0 else 0)
     return finite, active
+
+
+@_jit
+def cbf_stage(h, point, family, uncertainty, barrier, margin, tier, first_hard, barrier_family, every):
+    """cbf._stage: the right sides and the relaxed rows of a slack tier."""
+    bound = h.copy()
+    relaxed = np.zeros(h.size, dtype=np.bool_)
+    for i in range(h.size):
+        if family[i] >= first_hard:
+            continue
+        if every:
+            relaxed[i] = True
+        p = point[i]
+        if p < 0:
+            continue
+        lost = uncertainty[p] > margin
+        if tier == 0:
+            relaxed[i] = lost
+            continue
+        inside = barrier[p] <= 0.0
+        if inside and family[i] == barrier_family and h[i] < 0.0:
+            bound[i] = 0.0
+        if not every:
+            relaxed[i] = inside or lost
+    return bound, relaxed

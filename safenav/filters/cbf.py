@@ -415,7 +415,7 @@ class CBFSafetyFilter(SafetyFilter):
         self.backend: QPBackend = make_backend(cfg.solver)
         self._steps: StepClock | None = None     # this call's QPs against the budget
         self._ready(cfg.kernels)
-        #: The decision's array work (_screen, _qp_rows, _violated, _answer): compiled, or their numpy references.
+        #: The decision's array work (_screen, _qp_rows, _violated, _answer, _stage): compiled, or numpy.
         self._decide = self._kernels if self._kernels is not None else _NUMPY_DECISION
         if isinstance(self.backend, DirectDAQP):
             self.backend.kernels = self._kernels
@@ -757,15 +757,9 @@ class CBFSafetyFilter(SafetyFilter):
         the point is not approached (right side at least 0) rather than left at the recovery
         rate: the deepest point's recovery never sets the slack every other row is relaxed by.
         """
-        soft = ~rows.hard
-        with_point = soft & (rows.point >= 0)
-        index = np.where(with_point, rows.point, 0)
-        lost = with_point & (problem.uncertainty[index] > self.margin)
-        if tier == 0:
-            return rows.h, lost
-        inside = with_point & (problem.barrier[index] <= 0.0)
-        h = np.where(inside & (rows.family == _BARRIER), np.maximum(rows.h, 0.0), rows.h)
-        return h, soft if tier >= len(SLACK_TIERS) - 1 else inside | lost
+        _, h, point, family = _plain_rows(rows)
+        return self._decide.cbf_stage(h, point, family, _plain(problem.uncertainty), _plain(problem.barrier),
+                                      self.margin, tier, families.FIRST_HARD, _BARRIER, tier >= len(SLACK_TIERS) - 1)
 
     @staticmethod
     def _prune(rows: families.Rows, problem: _Problem) -> np.ndarray:
@@ -1203,5 +1197,23 @@ def _answer(G: np.ndarray, h: np.ndarray, bound: np.ndarray, family: np.ndarray,
     return worst, excess, soft_worst, binding, used[:-1], active[:-1]
 
 
-_NUMPY_DECISION = SimpleNamespace(cbf_screen=_screen, cbf_qp_rows=_qp_rows, cbf_violated=_violated, cbf_answer=_answer)
+def _stage(h: np.ndarray, point: np.ndarray, family: np.ndarray, uncertainty: np.ndarray, barrier: np.ndarray,
+           margin: float, tier: int, first_hard: int, barrier_family: int, every: bool
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`CBFSafetyFilter._stage`: the right sides and the relaxed rows of the slack tier ``tier`` over rows of
+    right sides ``h``, points ``point`` (-1: none) and families ``family`` (hard from ``first_hard``), with each
+    point's ``uncertainty`` and ``barrier`` [m]; ``every``: the last tier (every soft row relaxed)."""
+    soft = family < first_hard
+    with_point = soft & (point >= 0)
+    index = np.where(with_point, point, 0)
+    lost = with_point & (uncertainty[index] > margin)
+    if tier == 0:
+        return h, lost
+    inside = with_point & (barrier[index] <= 0.0)
+    bound = np.where(inside & (family == barrier_family), np.maximum(h, 0.0), h)
+    return bound, soft if every else inside | lost
+
+
+_NUMPY_DECISION = SimpleNamespace(cbf_screen=_screen, cbf_qp_rows=_qp_rows, cbf_violated=_violated, cbf_answer=_answer,
+                                  cbf_stage=_stage)
 """The numpy references of the compiled decision (the filter's ``_decide`` without kernels)."""

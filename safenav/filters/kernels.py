@@ -21,9 +21,10 @@ installed (``pip install "safenav[fast]"``) eleven pieces run as compiled loops 
   :func:`~safenav.filters.body.inside_polygon`, :class:`~safenav.filters.ZonesFilter`);
 * the working sets' nearest point per angular bin (``nearest_per_bin``,
   :func:`~safenav.filters.perception.nearest_per_bin`: the MPC's point slots, the CBF's first working set);
-* the CBF's decision around its QPs (``cbf_screen``, ``cbf_qp_rows``, ``cbf_violated``, ``cbf_answer``: the rows that
-  can bind, each QP's rows, the rows an answer misses, the answer's check and the row that bound it; the numpy
-  references are :mod:`safenav.filters.cbf`'s ``_screen``, ``_qp_rows``, ``_violated`` and ``_answer``);
+* the CBF's decision around its QPs (``cbf_screen``, ``cbf_qp_rows``, ``cbf_violated``, ``cbf_answer``, ``cbf_stage``:
+  the rows that can bind, each QP's rows, the rows an answer misses, the answer's check and the row that bound it,
+  a slack tier's rows; the numpy references are :mod:`safenav.filters.cbf`'s functions of the same names without
+  the prefix ``cbf``);
 * DAQP's arrays (``daqp_arrays``: the bounds of the simple bounds and rows and their flags) and the reading of its
   answer (``daqp_answer``), :class:`~safenav.filters.qp.DirectDAQP`'s for either filter;
 * where a turning lidar was at each beam of a scan of known age (``sweep_poses``,
@@ -89,7 +90,7 @@ def _build() -> SimpleNamespace:
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
         "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
         "plan_check", "seen_again", "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift", "cbf_screen",
-        "cbf_qp_rows", "cbf_violated", "cbf_answer", "daqp_arrays", "daqp_answer")})
+        "cbf_qp_rows", "cbf_violated", "cbf_answer", "cbf_stage", "daqp_arrays", "daqp_answer")})
     _warm(kernels)
     return kernels
 
@@ -112,6 +113,7 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.cbf_qp_rows(G, h, G, h, np.zeros(2), working, True)
     kernels.cbf_violated(G, h, working, 0.0, np.zeros(5), working, 1e-7)
     kernels.cbf_answer(G, h, h, index, index, np.zeros(4), np.zeros(4), index, 2, 3, 1e-6)
+    kernels.cbf_stage(h, index, index, h, h, 0.02, 1, 3, 0, False)
     # DAQP's arrays: one-sided and two-sided rows, cold and warm
     kernels.daqp_arrays(z[0], z[1], h, np.zeros(0), np.zeros(0, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)
     kernels.daqp_arrays(z[0], z[1], h, -h, np.zeros(6, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)

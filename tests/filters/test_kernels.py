@@ -424,13 +424,14 @@ def _random_rows(rng: np.random.Generator, count: int) -> tuple[np.ndarray, ...]
 def test_the_compiled_decision_is_the_numpy_one():
     """The CBF's decision around its QPs, compiled, gives its numpy references' answers (``cbf._screen``,
     ``_qp_rows``, ``_violated``, ``_answer``): the same rows, QP rows (the slack column's -0.0 bit for bit), working
-    sets, worst rows, binding rows and points, on random rows, boxes, answers and masks, with NaN in some answers."""
+    sets, worst rows, binding rows and points, slack tiers (``_stage``), on random rows, boxes, answers and masks, with
+    NaN in some answers."""
     from safenav.filters import cbf
     from safenav.filters.rows import FIRST_HARD
 
     compiled = kernels.load()
     rng = np.random.default_rng(11)
-    excluded = bound_rows = nan = 0
+    excluded = bound_rows = nan = raised = 0
     for trial in range(1500):
         count = int(rng.integers(0, 120))
         G, h, point, family = _random_rows(rng, count)
@@ -473,7 +474,14 @@ def test_the_compiled_decision_is_the_numpy_one():
         np.testing.assert_array_equal(want[4], got[4])
         np.testing.assert_array_equal(want[5], got[5])
         bound_rows += want[3] >= 0
-    assert excluded > 100 and bound_rows > 100 and nan > 50
+        uncertainty, barrier = rng.random(40) * 0.04, rng.normal(0.05, 0.1, 40)
+        for tier in range(3):
+            want, got = (function(h, point, family, uncertainty, barrier, 0.02, tier, FIRST_HARD, 0, tier == 2)
+                         for function in (cbf._stage, compiled.cbf_stage))
+            np.testing.assert_array_equal(want[0], got[0])
+            np.testing.assert_array_equal(want[1], got[1])
+            raised += int(np.sum(want[0] != h))
+    assert excluded > 100 and bound_rows > 100 and nan > 50 and raised > 100
 
 
 def test_the_compiled_daqp_arrays_are_the_numpy_ones():
