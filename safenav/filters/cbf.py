@@ -1115,10 +1115,7 @@ def _nearest(points: np.ndarray, barrier: np.ndarray) -> tuple[float, float] | N
 # those with kernels; tests/filters/test_kernels.py checks both give the same answers).
 
 _NO_RELAXATION = np.zeros(0)
-
-
-def _plain(array: np.ndarray) -> np.ndarray:
-    return kernels.plain(array)
+_plain = kernels.plain
 
 
 def _plain_rows(rows: families.Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
