@@ -45,11 +45,12 @@ def resolve(name: str) -> str:
     return name
 
 
-def plain(array: np.ndarray) -> np.ndarray:
-    """``array`` as the kernels were compiled for it: C-contiguous, writable float64 (a copy only when it is not)."""
-    if array.dtype == np.float64 and array.flags.c_contiguous and array.flags.writeable:
+def plain(array: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+    """``array`` as the kernels were compiled for it: C-contiguous, writable, of ``dtype`` (float64 unless asked: the
+    index arrays are intp), a copy only when it is not."""
+    if array.dtype == dtype and array.flags.c_contiguous and array.flags.writeable:
         return array
-    return np.array(array, dtype=float, order="C")
+    return np.array(array, dtype=dtype, order="C")
 
 
 def frozen(array: np.ndarray) -> np.ndarray:

@@ -44,6 +44,24 @@ def term_signs(k, low, high):
     return k == 0.0, k == 0.0
 
 @_jit
+def box_halves(lower, upper):
+    """The centre and the half-widths of the box ``lower <= z <= upper`` (rows._box_terms)."""
+    return 0.5 * (lower + upper), 0.5 * (upper - lower)
+
+
+@_jit
+def box_terms(G, r, centre, half):
+    """rows._box_terms, one row: row ``r``'s left side at the box's centre and its spread over the box (its extremes
+    over the box are their sum and difference)."""
+    middle = 0.0
+    spread = 0.0
+    for c in range(4):
+        middle += G[r, c] * centre[c]
+        spread += abs(G[r, c]) * half[c]
+    return middle, spread
+
+
+@_jit
 def row_block(count):
     """Room for ``count`` rows ``(G, h, point, family)``, as :class:`~safenav.filters.rows.Rows` holds them."""
     return np.empty((count, 4)), np.empty(count), np.empty(count, dtype=np.intp), np.empty(count, dtype=np.intp)
@@ -218,16 +236,11 @@ def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor
     for c in range(2):
         hull_lower[c] = min(z_lower[c], velocity[c])
         hull_upper[c] = max(z_upper[c], velocity[c])
-    middle = 0.5 * (hull_lower + hull_upper)
-    half = 0.5 * (hull_upper - hull_lower)
+    middle, half = box_halves(hull_lower, hull_upper)
     bind = np.empty(rows, dtype=np.intp)
     binding = 0
     for r in range(rows):
-        worst = 0.0
-        spread = 0.0
-        for c in range(4):
-            worst += G[r, c] * middle[c]
-            spread += abs(G[r, c]) * half[c]
+        worst, spread = box_terms(G, r, middle, half)
         if worst + spread > h[r]:
             bind[binding] = r
             binding += 1
@@ -692,20 +705,12 @@ def cbf_screen(G, h, point, family, lower, upper, tolerance):
     """cbf._screen: the rows some ``z`` in the box violates (their coefficients, right sides, points, families and
     indices) and whether some row is missed by every ``z`` in the box by more than ``tolerance``."""
     count = h.size
-    centre = np.empty(4)
-    half = np.empty(4)
-    for j in range(4):
-        centre[j] = 0.5 * (lower[j] + upper[j])
-        half[j] = 0.5 * (upper[j] - lower[j])
+    centre, half = box_halves(lower, upper)
     kept = np.empty(count, dtype=np.intp)
     n = 0
     excluded = False
     for i in range(count):
-        middle = 0.0
-        spread = 0.0
-        for j in range(4):
-            middle += G[i, j] * centre[j]
-            spread += abs(G[i, j]) * half[j]
+        middle, spread = box_terms(G, i, centre, half)
         if middle + spread > h[i]:
             kept[n] = i
             n += 1

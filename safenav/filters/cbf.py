@@ -757,7 +757,7 @@ class CBFSafetyFilter(SafetyFilter):
         the point is not approached (right side at least 0) rather than left at the recovery
         rate: the deepest point's recovery never sets the slack every other row is relaxed by.
         """
-        _, h, point, family = _plain_rows(rows)
+        h, point, family = _plain(rows.h), _plain(rows.point, np.intp), _plain(rows.family, np.intp)
         return self._decide.cbf_stage(h, point, family, _plain(problem.uncertainty), _plain(problem.barrier),
                                       self.margin, tier, families.FIRST_HARD, _BARRIER, tier >= len(SLACK_TIERS) - 1)
 
@@ -1120,12 +1120,7 @@ _plain = kernels.plain
 
 def _plain_rows(rows: families.Rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``rows``' arrays as the compiled decision takes them (float64 and intp, C-contiguous, writable)."""
-    point, family = rows.point, rows.family
-    if not (point.dtype == np.intp and point.flags.c_contiguous and point.flags.writeable):
-        point = np.array(point, dtype=np.intp)
-    if not (family.dtype == np.intp and family.flags.c_contiguous and family.flags.writeable):
-        family = np.array(family, dtype=np.intp)
-    return _plain(rows.G), _plain(rows.h), point, family
+    return _plain(rows.G), _plain(rows.h), _plain(rows.point, np.intp), _plain(rows.family, np.intp)
 
 
 def _screen(G: np.ndarray, h: np.ndarray, point: np.ndarray, family: np.ndarray, lower: np.ndarray,

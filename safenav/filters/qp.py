@@ -47,10 +47,8 @@ _NO_BOUNDS, _NO_GUESS = np.zeros(0), np.zeros(0, dtype=np.int8)   # no lower bou
 
 
 def _int8(array: np.ndarray) -> np.ndarray:
-    """A warm start as the kernels take it (C-contiguous, writable int8)."""
-    if array.dtype == np.int8 and array.flags.c_contiguous and array.flags.writeable:
-        return array
-    return np.array(np.sign(array), dtype=np.int8)
+    """A warm start as the kernels take it (C-contiguous, writable int8; another integer type by its signs)."""
+    return plain(array if array.dtype == np.int8 else np.sign(array), np.int8)
 
 
 class QPOutcome(NamedTuple):
