@@ -709,6 +709,12 @@ class LaserScan:
         """Number of beams that are not ``INVALID`` (in range, or ``+-inf``)."""
         return int(np.count_nonzero(self._hit_mask)) + int(np.count_nonzero(np.isinf(self.ranges)))
 
+    def _classified(self, readings: np.ndarray, hits: np.ndarray, n_informative: int) -> None:
+        """Set :attr:`readings`, its hit mask and :attr:`n_informative` as computed elsewhere (the filters' compiled
+        kernel, :func:`safenav.filters.perception.classify`: the same values in one pass)."""
+        readings.flags.writeable = False
+        self.__dict__.update(readings=readings, _hit_mask=hits, n_informative=int(n_informative))
+
     def obstacle_beams(self) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the beams that give an obstacle point, and their ranges [m].
 

@@ -84,6 +84,68 @@ def pair_minima(points, uncertainty, control, offsets):
     return per_point
 
 @_jit
+def cbf_distances(points, uncertainty, centres, radii, centred, spread):
+    """The first steps of CBFSafetyFilter._constraints: every point's distance from the base origin [m], the smallest
+    distance less the point's uncertainty (the cut's ceiling, ``inf`` without points) and the body's clearance
+    (CBFSafetyFilter._clearance: a ``centred`` disk's nearest distance less its radius; else the disks' smallest
+    distance to the points within twice the centres' ``spread`` of the nearest one, as BodyModel.clearance)."""
+    count = points.shape[0]
+    distance = np.empty(count)
+    smallest = np.inf
+    nearest = np.inf
+    for i in range(count):
+        x, y = points[i, 0], points[i, 1]
+        value = math.sqrt(x * x + y * y)
+        distance[i] = value
+        if value - uncertainty[i] < smallest:
+            smallest = value - uncertainty[i]
+        if value < nearest:
+            nearest = value
+    if count == 0:
+        return distance, smallest, np.inf
+    if centred:
+        return distance, smallest, nearest - radii[0]
+    within = nearest + 2.0 * spread + 1e-9
+    clearance = np.inf
+    for i in range(count):
+        if not distance[i] <= within:
+            continue
+        for d in range(centres.shape[0]):
+            gap = math.hypot(points[i, 0] - centres[d, 0], points[i, 1] - centres[d, 1]) - radii[d]
+            if gap < clearance:
+                clearance = gap
+    return distance, smallest, clearance
+
+
+@_jit
+def cbf_cut(points, uncertainty, distance, near, beyond, centres, radii, lookahead, margin):
+    """The cut of CBFSafetyFilter._constraints for disk bodies: the points whose distance less uncertainty is within
+    ``near`` [m] (and their uncertainty), whether that is every point, and the smallest barrier (BodyModel.barrier
+    with ``lookahead`` and ``margin``) of the points left out within ``beyond`` (``inf`` when none)."""
+    count = points.shape[0]
+    kept = 0
+    for i in range(count):
+        if distance[i] - uncertainty[i] <= near:
+            kept += 1
+    kept_points, kept_uncertainty = np.empty((kept, 2)), np.empty(kept)
+    left_out = np.inf
+    j = 0
+    for i in range(count):
+        gap = distance[i] - uncertainty[i]
+        if gap <= near:
+            kept_points[j, 0], kept_points[j, 1] = points[i, 0], points[i, 1]
+            kept_uncertainty[j] = uncertainty[i]
+            j += 1
+        elif gap <= beyond:
+            for d in range(centres.shape[0]):
+                value = math.hypot(points[i, 0] - (centres[d, 0] + lookahead), points[i, 1] - (centres[d, 1] + 0.0)) \
+                    - (radii[d] + lookahead + margin + uncertainty[i])
+                if value < left_out:
+                    left_out = value
+    return kept_points, kept_uncertainty, kept == count, left_out
+
+
+@_jit
 def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor_ratio, travel, kappa,
                   gamma, own, period, smallest, with_velocity, velocity, a_max, alpha_max, reaction, allowance,
                   braking_reach, box_lower, box_upper, lag, z_lower, z_upper):
@@ -267,6 +329,51 @@ def obstacle_rows(points, uncertainty, control, offsets, per_point, limit, floor
 
 
 @_jit
+def scan_readings(ranges, range_min, range_max, hit, no_return, too_close, invalid):
+    """LaserScan.readings, its ``_hit_mask`` and ``n_informative`` in one pass over the ranges."""
+    n = ranges.size
+    codes = np.empty(n, dtype=np.int8)
+    hits = np.empty(n, dtype=np.bool_)
+    informative = 0
+    for i in range(n):
+        r = ranges[i]
+        inside = r >= range_min and r <= range_max
+        hits[i] = inside
+        if inside:
+            codes[i] = hit
+        elif r == np.inf:
+            codes[i] = no_return
+        elif r == -np.inf:
+            codes[i] = too_close
+        else:
+            codes[i] = invalid
+            continue
+        informative += 1
+    return codes, hits, informative
+
+
+@_jit
+def hit_points(ranges, hits, cos_base, sin_base, mount_x, mount_y):
+    """perception.beam_points of one scan taken at once: the base-frame point of every ``HIT`` beam, in beam order
+    (LaserScan.beam_points), and whether a beam reads ``TOO_CLOSE`` (whose point these do not give)."""
+    count = 0
+    close = False
+    for i in range(ranges.size):
+        if hits[i]:
+            count += 1
+        elif ranges[i] == -np.inf:
+            close = True
+    out = np.empty((count, 2))
+    j = 0
+    for i in range(ranges.size):
+        if hits[i]:
+            out[j, 0] = mount_x + ranges[i] * cos_base[i]
+            out[j, 1] = mount_y + ranges[i] * sin_base[i]
+            j += 1
+    return out, close
+
+
+@_jit
 def shadow_beams(ranges, readings, hit, no_return, limit, spacing, jump, wraps):
     """perception.shadow_points of one scan, before the beams' directions: the beam and the range [m] of every
     point along the edges of what obstacles hide (``limit``: the reach plus the lidar's lever [m])."""
@@ -381,6 +488,44 @@ def seen_again(ranges, readings, hit, no_return, range_max, angle_min, increment
             points_out[i, 1] -= depth * normals[pick, 1]
             uncertainty_out[i] = math.sqrt(max(u * u - depth * depth, 0.0))
     return again, points_out, uncertainty_out
+
+
+@_jit
+def memory_recall(stored, stored_uncertainty, frame_x, frame_y, cos_yaw, sin_yaw, error_0, error_1, error_2,
+                  spread_0, spread_1, spread, max_range, tolerance, ranges, readings, hit, no_return, range_max,
+                  angle_min, increment, mount_x, mount_y, mount_yaw, wraps, wide):
+    """perception.PointMemory.recall with one scan taken at once: the stored points moved into the current base frame
+    (the frame's ``cos_yaw``, ``sin_yaw``: Pose2D.to_local), their uncertainty (PointMemory.uncertainty, with the scan's
+    ``spread`` when asked: motion_spread), those within ``max_range``, seen_again, and the points kept with their
+    uncertainty (their own where the scan did not narrow them)."""
+    count = stored.shape[0]
+    points = np.empty((count, 2))
+    own, uncertainty, allowed = np.empty(count), np.empty(count), np.empty(count)
+    keep = np.empty(count, dtype=np.bool_)
+    for i in range(count):
+        dx, dy = stored[i, 0] - frame_x, stored[i, 1] - frame_y
+        x = cos_yaw * dx + sin_yaw * dy
+        y = -sin_yaw * dx + cos_yaw * dy
+        points[i, 0], points[i, 1] = x, y
+        own[i] = stored_uncertainty[i] + error_0 + math.hypot(dx, dy) * error_1 + error_2
+        distance = math.hypot(x, y)
+        uncertainty[i] = own[i] + (spread_0 + distance * spread_1) if spread else own[i]
+        keep[i] = distance <= max_range + uncertainty[i]
+        allowed[i] = tolerance + uncertainty[i]
+    again, moved, narrowed = seen_again(ranges, readings, hit, no_return, range_max, angle_min, increment, mount_x,
+                                        mount_y, mount_yaw, wraps, wide, points, allowed, uncertainty)
+    kept = 0
+    for i in range(count):
+        keep[i] = keep[i] and not again[i]
+        kept += keep[i]
+    out_points, out_uncertainty = np.empty((kept, 2)), np.empty(kept)
+    j = 0
+    for i in range(count):
+        if keep[i]:
+            out_points[j, 0], out_points[j, 1] = moved[i, 0], moved[i, 1]
+            out_uncertainty[j] = own[i] if narrowed[i] == uncertainty[i] else narrowed[i]
+            j += 1
+    return out_points, out_uncertainty
 
 
 @_jit

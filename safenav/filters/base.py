@@ -49,6 +49,7 @@ from safenav.filters.perception import (
     SeenFree,
     beam_gap,
     beam_points,
+    classify,
     dead_reckoning,
     horizon_points,
     motion_spread,
@@ -829,6 +830,7 @@ class SafetyFilter(abc.ABC):
         if not _finite(nominal):
             return self._brake(nominal, current, FilterStatus.BAD_INPUT, "bad_input",
                                f"u_nom is not finite: {nominal.tolist()}", warnings=warnings, period=held)
+        classify(scans, self._kernels)
         if all(scan.n_informative == 0 for scan in scans):
             beams = sum(scan.n_beams for scan in scans)
             return self._brake(nominal, current, FilterStatus.NO_DATA, "no_data",
@@ -1033,7 +1035,7 @@ class SafetyFilter(abc.ABC):
         ``error``: the bound ``(e_translation [m], e_rotation [rad])`` of where the scans were moved into the
         current base frame (:meth:`latent_motion`): a point ``d`` from the base origin is uncertain by
         ``e_translation + d e_rotation``, and so is where it shows a remembered point again or free."""
-        current = beam_points(scans, self.body)
+        current = beam_points(scans, self.body, compiled=self._kernels)
         reach = self.horizon_reach(period)
         horizon = horizon_points(scans, reach, self.min_obstacle_width)
         shadows = shadow_points(scans, reach, self.shadow_jump, self._kernels)
@@ -1065,7 +1067,8 @@ class SafetyFilter(abc.ABC):
         reason = result.reason
         if reason is None or reason.point is None or view.n_horizon == 0:
             return result
-        if not np.any(np.all(view.horizon == np.asarray(reason.point), axis=1)):
+        horizon, (x, y) = view.horizon, reason.point
+        if not ((horizon[:, 0] == x) & (horizon[:, 1] == y)).any():
             return result
         told = Reason(reason.family, f"{reason.detail}; the point is where what the lidars see ends (range_max, "
                                      f"the edge of what an obstacle hides, or where an obstacle of "

@@ -173,7 +173,7 @@ class BodyModel:
     def n_disks(self) -> int:
         return int(self.radii.size)
 
-    @property
+    @functools.cached_property
     def reach(self) -> float:
         """Largest distance from the base origin to any point of the disks [m]."""
         return float(np.max(np.hypot(self.centres[:, 0], self.centres[:, 1]) + self.radii))

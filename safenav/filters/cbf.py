@@ -486,51 +486,36 @@ class CBFSafetyFilter(SafetyFilter):
         z_lower, z_upper = np.concatenate((lower, t_low)), np.concatenate((upper, t_high))    # the box on z
         time_constant = self.time_constant if velocity is not None else 0.0
         reaction = reaction_time(period, time_constant)
-        points, uncertainty = view.points, view.uncertainty
-        distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
-        clearance = self._clearance(points, distance)
-        cut_barrier = math.inf     # the smallest barrier of the points the cut leaves out
-        if cut and points.shape[0]:
-            # Before any trigonometry: a point farther from the base than the reach of every row plus the
-            # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
-            ceiling = float(np.min(distance - uncertainty)) + self._extent[0]
-            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
-            near = distance - uncertainty <= reach + self._extent[1]
-            if not near.all():
-                # H is reported over every point. The point that sets it is within the ceiling plus the extent;
-                # when the cut leaves it out, no kept row can bind either, whichever H it is written with.
-                left_out = ~near & (distance - uncertainty <= ceiling + self._extent[1])
-                if left_out.any():
-                    cut_barrier = self._shape.body.barrier(points[left_out], self.margin, uncertainty[left_out],
-                                                           self.lookahead)
-                points, uncertainty = points[near], uncertainty[near]
         # Rows leave the travel along the heading free where a point allows it (rows.slide): one period's
         # travel, or with the velocity the braking distance, since every pair then keeps its own rate
         # (_own_rate) and a wall ahead-beside would otherwise be approached, point by point, at that rate.
         speed = max(abs(float(lower[0])), abs(float(upper[0])))
         travel = speed * period if velocity is None else speed * reaction + speed * speed / (2.0 * robot.a_max)
-        tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma, travel=travel)
-        geo, per_point, min_barrier, obstacle = None, np.empty(0), cut_barrier, families.stack()
+        geo, per_point, obstacle = None, np.empty(0), families.stack()
         if self._kernels is not None and cut and self._polygon is None:
-            obstacle, per_point, min_barrier = self._compiled_rows(points, uncertainty, velocity, (lower, upper),
-                                                                   (z_lower, z_upper), period, reaction, kappa,
-                                                                   travel, cut_barrier)
-        elif points.shape[0]:
-            if self._polygon is not None:
-                kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+            obstacle, points, uncertainty, per_point, min_barrier, clearance = self._compiled_rows(
+                view, velocity, (lower, upper), (z_lower, z_upper), period, reaction, kappa, travel)
+        else:
+            points, uncertainty, clearance, cut_barrier = self._cut(view, velocity, (lower, upper), period, reaction,
+                                                                    cut)
+            min_barrier = cut_barrier
+            if points.shape[0]:
+                tilt = dict(drop=cut, floor_ratio=1.0 - self.gamma, travel=travel)
+                if self._polygon is not None:
+                    kept_distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
 
-                def polygon_limit(smallest: float) -> np.ndarray:
-                    return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
+                    def polygon_limit(smallest: float) -> np.ndarray:
+                        return self._binding_reach(lower, upper, velocity, smallest, period, reaction, kept_distance)
 
-                geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin, kappa,
-                                                           polygon_limit, **tilt)
-            else:
-                def limit(smallest: float) -> float:
-                    return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
+                    geo, per_point = families.polygon_geometry(points, uncertainty, self._polygon, self.margin,
+                                                               kappa, polygon_limit, **tilt)
+                else:
+                    def limit(smallest: float) -> float:
+                        return self._binding_reach(lower, upper, velocity, smallest, period, reaction)
 
-                geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
-                                                   self.margin, kappa, limit, **tilt)
-            min_barrier = min(float(per_point.min()), cut_barrier)
+                    geo, per_point = families.geometry(points, uncertainty, body.centres, body.radii, self.lookahead,
+                                                       self.margin, kappa, limit, **tilt)
+                min_barrier = min(float(per_point.min()), cut_barrier)
         if geo is not None and geo.point.size:   # else compiled, or no point within the reach of any row
             barrier = families.barrier_rows(geo, self.gamma, self._own_rate(velocity), period, smallest=min_barrier)
             obstacle = barrier
@@ -562,24 +547,64 @@ class CBFSafetyFilter(SafetyFilter):
         return _Problem(rows, points, per_point, uncertainty, min_barrier, z_lower, z_upper, velocity, (lower, upper),
                         clearance, blind_speed)
 
-    def _compiled_rows(self, points: np.ndarray, uncertainty: np.ndarray, velocity: np.ndarray | None,
-                       box: tuple[np.ndarray, np.ndarray], z_box: tuple[np.ndarray, np.ndarray], period: float,
-                       reaction: float, kappa: float, travel: float, cut_barrier: float
-                       ) -> tuple[families.Rows, np.ndarray, float]:
-        """The obstacle rows of the disk bodies by :mod:`~safenav.filters.kernels` (what the numpy branch of
-        :meth:`_constraints` builds with the cut), every point's smallest barrier and ``H`` [m]."""
+    def _cut(self, view: View, velocity: np.ndarray | None, box: tuple[np.ndarray, np.ndarray], period: float,
+             reaction: float, cut: bool) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """The points that can matter (every point without ``cut``) and their uncertainty, the body's clearance [m]
+        and the smallest barrier of the points the cut leaves out [m] (``inf`` when it leaves none out)."""
+        points, uncertainty = view.points, view.uncertainty
+        distance = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+        clearance = self._clearance(points, distance)
+        cut_barrier = math.inf
+        if cut and points.shape[0]:
+            # Before any trigonometry: a point farther from the base than the reach of every row plus the
+            # body's extent cannot bind (its barrier is at least |o| - |p| - r, and H at most |o_min| + |p| - r).
+            lower, upper = box
+            ceiling = float(np.min(distance - uncertainty)) + self._extent[0]
+            reach = self._binding_reach(lower, upper, velocity, ceiling, period, reaction, distance)
+            near = distance - uncertainty <= reach + self._extent[1]
+            if not near.all():
+                # H is reported over every point. The point that sets it is within the ceiling plus the extent;
+                # when the cut leaves it out, no kept row can bind either, whichever H it is written with.
+                left_out = ~near & (distance - uncertainty <= ceiling + self._extent[1])
+                if left_out.any():
+                    cut_barrier = self._shape.body.barrier(points[left_out], self.margin, uncertainty[left_out],
+                                                           self.lookahead)
+                points, uncertainty = points[near], uncertainty[near]
+        return points, uncertainty, clearance, cut_barrier
+
+    def _compiled_rows(self, view: View, velocity: np.ndarray | None, box: tuple[np.ndarray, np.ndarray],
+                       z_box: tuple[np.ndarray, np.ndarray], period: float, reaction: float, kappa: float,
+                       travel: float) -> tuple[families.Rows, np.ndarray, np.ndarray, np.ndarray, float, float]:
+        """What :meth:`_cut` and the numpy branch of :meth:`_constraints` give for the disk bodies with the cut, by
+        :mod:`~safenav.filters.kernels`: the obstacle rows, the kept points and their uncertainty, every kept point's
+        smallest barrier, ``H`` [m] and the body's clearance [m]."""
         compiled, shape = self._kernels, self._shape
-        points, uncertainty = kernels.plain(points), kernels.plain(uncertainty)
+        body, (lower, upper) = shape.body, box
+        points, uncertainty = kernels.plain(view.points), kernels.plain(view.uncertainty)
+        # the reach's parts that do not depend on the barrier, once (_binding_reach)
+        approach = period * self._approach_bound(lower, upper, velocity, period)
+        braking_reach = self._braking_reach(lower, upper, velocity, period, reaction) if velocity is not None else None
+        centred = body.n_disks == 1 and not body.centres.any()
+        spread = 0.0 if centred else float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
+        distance, ceiling, clearance = compiled.cbf_distances(points, uncertainty, body.centres, body.radii, centred,
+                                                              spread)
         if not points.shape[0]:
-            return families.stack(), np.empty(0), cut_barrier
+            return families.stack(), points, uncertainty, np.empty(0), math.inf, clearance
+        ceiling += self._extent[0]
+        reach = self._reach(ceiling, approach, velocity, braking_reach)
+        kept, kept_uncertainty, every, cut_barrier = compiled.cbf_cut(
+            points, uncertainty, distance, reach + self._extent[1], ceiling + self._extent[1], body.centres,
+            body.radii, float(self.lookahead), float(self.margin))
+        if not every:
+            points, uncertainty = kept, kept_uncertainty
+        if not points.shape[0]:
+            return families.stack(), points, uncertainty, np.empty(0), cut_barrier, clearance
         per_point = compiled.pair_minima(points, uncertainty, shape.control, shape.offsets)
         smallest = float(per_point.min())
-        lower, upper = box
-        limit = float(self._binding_reach(lower, upper, velocity, smallest, period, reaction))
+        limit = float(self._reach(smallest, approach, velocity, braking_reach))
         min_barrier = min(smallest, cut_barrier)
         with_velocity = velocity is not None
         if with_velocity:
-            braking_reach = float(self._braking_reach(lower, upper, velocity, period, reaction))
             lag = lag_fraction(period, self.time_constant)
             moving = kernels.plain(velocity)
         else:
@@ -590,9 +615,9 @@ class CBFSafetyFilter(SafetyFilter):
             points, uncertainty, shape.control, shape.offsets, per_point, limit, float(1.0 - self.gamma),
             float(travel), float(kappa), float(self.gamma), float(self._own_rate(velocity)), float(period),
             float(min_barrier), with_velocity, moving, float(robot.a_max), float(robot.alpha_max), float(reaction),
-            float(self._allowance), braking_reach, kernels.plain(lower), kernels.plain(upper), float(lag),
+            float(self._allowance), float(braking_reach), kernels.plain(lower), kernels.plain(upper), float(lag),
             kernels.plain(z_box[0]), kernels.plain(z_box[1]))
-        return families.Rows(G, h, point, family), per_point, min_barrier
+        return families.Rows(G, h, point, family), points, uncertainty, per_point, min_barrier, clearance
 
     def _blind_speed(self, view: View, box: tuple[np.ndarray, np.ndarray], velocity: np.ndarray | None,
                      period: float, reaction: float, u_nom: np.ndarray | None) -> float:
@@ -694,14 +719,21 @@ class CBFSafetyFilter(SafetyFilter):
         approach ``dt S``; pairs inside the margin always may bind.
         """
         travel = period * self._approach_bound(lower, upper, velocity, period, distance)
+        braking = None if velocity is None else self._braking_reach(lower, upper, velocity, period, reaction, distance)
+        return self._reach(min_barrier, travel, velocity, braking)
+
+    def _reach(self, min_barrier: float, travel: float | np.ndarray, velocity: np.ndarray | None,
+               braking: float | np.ndarray | None) -> float | np.ndarray:
+        """:meth:`_binding_reach` from its parts: ``travel``, the period's largest approach [m], and ``braking``, the
+        braking reach (``None`` without the velocity) [m]."""
         reach = (1.0 - self.gamma) * min_barrier + travel
         larger = np.maximum if isinstance(reach, np.ndarray) else max   # Python floats for one distance
         own = self._own_rate(velocity)
         if own < 1.0:
             reach = larger(reach, travel / own)
         reach = larger(reach, 0.0) + 1e-9
-        if velocity is not None:
-            reach = larger(reach, self._braking_reach(lower, upper, velocity, period, reaction, distance))
+        if braking is not None:
+            reach = larger(reach, braking)
         return reach
 
     @staticmethod

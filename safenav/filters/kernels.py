@@ -5,14 +5,20 @@ numpy's per-operation overhead (about a hundred operations a call), not in arith
 installed (``pip install "safenav[fast]"``) eleven pieces run as compiled loops instead
 (:mod:`safenav.filters._compiled_rows`):
 
-* the CBF's obstacle rows of the disk and cover bodies with the cut: ``pair_minima`` (every point's
+* the CBF's obstacle rows of the disk and cover bodies with the cut: ``cbf_distances`` (every point's distance, the
+  cut's ceiling and the body's clearance), ``cbf_cut`` (the points the cut keeps, and the smallest barrier of those
+  it leaves out), ``pair_minima`` (every point's
   smallest barrier, which sets how far the cut reaches) and ``obstacle_rows`` (the kept pairs' tilted
   half-planes, then the barrier, braking and sweep rows and their ramp corners, in the order
   :mod:`~safenav.filters.rows` stacks them);
-* the edges of what obstacles hide (``shadow_beams``, :func:`~safenav.filters.perception.shadow_points`);
+* what each beam of a scan reads (``scan_readings``: :attr:`~safenav.scan.LaserScan.readings`, seeded by
+  :func:`~safenav.filters.perception.classify`) and the points its hits give (``hit_points``,
+  :func:`~safenav.filters.perception.beam_points`), the edges of what obstacles hide (``shadow_beams``,
+  :func:`~safenav.filters.perception.shadow_points`);
 * which remembered points a scan shows again or contradicts, and where those it cannot see may still be
   (``seen_again``, :meth:`~safenav.filters.perception.PointMemory.recall`: every point's beam, the beams its
-  uncertainty fans over, the narrowing beyond an edge of the field of view);
+  uncertainty fans over, the narrowing beyond an edge of the field of view; ``memory_recall``: the whole recall
+  with one scan taken at once);
 * the MPC's direct SQP: the clearance rows' values at an iterate, the QP's rows and the check of each
   answer (``sqp_values``, ``sqp_clearance_rows``, ``sqp_violated``, :class:`~safenav.filters.mpc.DirectSQP`);
 * the MPC's verification of a plan (``plan_check``, :meth:`~safenav.filters.MPCSafetyFilter.check_plan`): the
@@ -88,9 +94,10 @@ def _build() -> SimpleNamespace:
     from safenav.filters import _compiled_rows
 
     kernels = SimpleNamespace(**{name: getattr(_compiled_rows, name) for name in (
-        "pair_minima", "obstacle_rows", "shadow_beams", "sqp_values", "sqp_clearance_rows", "sqp_violated",
-        "plan_check", "seen_again", "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift", "cbf_screen",
-        "cbf_qp_rows", "cbf_violated", "cbf_answer", "cbf_stage", "daqp_arrays", "daqp_answer")})
+        "cbf_distances", "cbf_cut", "pair_minima", "obstacle_rows", "scan_readings", "hit_points", "shadow_beams",
+        "sqp_values", "sqp_clearance_rows", "sqp_violated", "plan_check", "seen_again", "memory_recall",
+        "inside_polygon", "nearest_per_bin", "sweep_poses", "sweep_shift", "cbf_screen", "cbf_qp_rows", "cbf_violated",
+        "cbf_answer", "cbf_stage", "daqp_arrays", "daqp_answer")})
     _warm(kernels)
     return kernels
 
@@ -100,6 +107,9 @@ def _warm(kernels: SimpleNamespace) -> None:
     float scalars): one specialisation each."""
     points, uncertainty = np.array([[0.5, 0.1], [0.6, -0.2]]), np.zeros(2)
     control, offsets = np.array([[0.1, 0.0]]), np.array([0.3])
+    for centred in (True, False):
+        distance, _, _ = kernels.cbf_distances(points, uncertainty, control, offsets, centred, 0.1)
+    kernels.cbf_cut(points, uncertainty, distance, 0.5, 1.0, control, offsets, 0.1, 0.05)
     per_point = kernels.pair_minima(points, uncertainty, control, offsets)
     box = np.array([-0.5, -1.0]), np.array([0.5, 1.0])
     z = np.array([-0.5, -1.0, 0.0, 0.0]), np.array([0.5, 1.0, 0.5, 1.0])
@@ -118,10 +128,18 @@ def _warm(kernels: SimpleNamespace) -> None:
     kernels.daqp_arrays(z[0], z[1], h, np.zeros(0), np.zeros(0, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)
     kernels.daqp_arrays(z[0], z[1], h, -h, np.zeros(6, dtype=np.int8), np.zeros(3, dtype=np.int32), 5)
     kernels.daqp_answer(np.zeros(4), np.zeros(6))
+    ranges = frozen(np.array([1.0, 3.0, np.inf]))
+    hits = kernels.scan_readings(ranges, 0.1, 10.0, 0, 1, 2, 3)[1]
+    for mask in (hits, frozen(hits)):    # the kernel's own, and a scan's numpy one (read-only)
+        kernels.hit_points(ranges, frozen(mask), frozen(np.ones(3)), frozen(np.zeros(3)), 0.0, 0.0)
     kernels.shadow_beams(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 2.0,
                          0.05, 0.3, True)
     kernels.seen_again(frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1, 10.0,
                        -1.0, 1.0, 0.0, 0.0, 0.0, False, True, points, np.full(2, 0.02), np.full(2, 0.1))
+    for spread in (True, False):
+        kernels.memory_recall(points, np.zeros(2), 0.1, 0.0, 1.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, spread, 5.0, 0.02,
+                              frozen(np.array([1.0, 3.0, np.inf])), frozen(np.array([0, 0, 1], dtype=np.int8)), 0, 1,
+                              10.0, -1.0, 1.0, 0.0, 0.0, 0.0, False, True)
     # the MPC's SQP: two points, one knot's two disks, two knot variables and one slack per point
     centres, jacobian, radii = np.array([[0.1, 0.2], [0.0, 0.1]]), np.ones((2, 2, 2)), np.full((2, 2), 0.3)
     dx, dy, values, working, candidates = kernels.sqp_values(centres, points, 1.0 / radii, radii,

@@ -37,7 +37,7 @@ import numpy as np
 from safenav.filters.body import BodyModel
 from safenav.filters.kernels import frozen, plain
 from safenav.geometry import TWO_PI, Pose2D, unicycle_step, wrap_angle
-from safenav.scan import _HIT, _INVALID, _NO_RETURN, LaserScan  # the reading codes as plain ints (faster)
+from safenav.scan import _HIT, _INVALID, _NO_RETURN, _TOO_CLOSE, LaserScan  # the reading codes as plain ints
 
 __all__ = [
     "START_BLIND_CLEARANCE",
@@ -114,15 +114,37 @@ def _exit_ranges(origin: np.ndarray, direction: np.ndarray, polygon: np.ndarray)
     return np.maximum(np.min(reach, axis=1), 0.0)
 
 
-def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_distance: float = math.inf
-                ) -> np.ndarray:
+def classify(scans: tuple[LaserScan, ...], compiled: Any = None) -> None:
+    """What each beam of each scan reads (:attr:`~safenav.scan.LaserScan.readings`, its hits and
+    :attr:`~safenav.scan.LaserScan.n_informative`), by one compiled pass over the ranges when ``compiled`` holds the
+    kernels of :mod:`~safenav.filters.kernels` (else the scan computes them with numpy when first asked): the same
+    values, set once per scan."""
+    if compiled is None:
+        return
+    for scan in scans:
+        if "readings" not in scan.__dict__:
+            scan._classified(*compiled.scan_readings(frozen(scan.ranges), scan.range_min, scan.range_max, _HIT,
+                                                     _NO_RETURN, _TOO_CLOSE, _INVALID))
+
+
+def beam_points(scans: tuple[LaserScan, ...], body: BodyModel | float, max_distance: float = math.inf,
+                compiled: Any = None) -> np.ndarray:
     """Obstacle points of every scan in the base frame, ``(N, 2)`` [m] (``body``: see :func:`obstacle_beams`).
 
     With ``max_distance``, beams whose point cannot be within ``max_distance`` of the base
     origin (range beyond ``max_distance + |mount|``) are skipped before any trigonometry.
+    ``compiled``: the kernels of :mod:`~safenav.filters.kernels` (the same points by one compiled loop for a scan
+    taken at once without a ``TOO_CLOSE`` beam).
     """
     pieces = []
     for scan in scans:
+        if compiled is not None and scan.sweep_motion is None and max_distance == math.inf:
+            geometry = scan.geometry
+            points, close = compiled.hit_points(frozen(scan.ranges), frozen(scan._hit_mask), geometry.cos_base,
+                                                geometry.sin_base, float(scan.mount.x), float(scan.mount.y))
+            if not close:
+                pieces.append(points)
+                continue
         index, ranges = obstacle_beams(scan, body)
         if math.isfinite(max_distance):
             keep = ranges <= max_distance + math.hypot(scan.mount.x, scan.mount.y)
@@ -476,6 +498,8 @@ class PointMemory:
         """
         if self._points.shape[0] == 0:
             return np.empty((0, 2)), np.empty(0)
+        if compiled is not None and len(scans) == 1 and scans[0].sweep_motion is None:
+            return self._recall_compiled(compiled, scans[0], tolerance, scan_error)
         points, own = self.points, self.uncertainty
         uncertainty = own + motion_spread(points, scan_error) if any(scan_error) else own
         against = uncertainty
@@ -498,6 +522,18 @@ class PointMemory:
             keep &= ~seen
         uncertainty = np.where(uncertainty == against, own, uncertainty)   # not narrowed: its own uncertainty
         return points[keep], uncertainty[keep]
+
+    def _recall_compiled(self, compiled: Any, scan: LaserScan, tolerance: float, scan_error: tuple[float, float]
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`recall` with one scan taken at once, by the kernel ``compiled.memory_recall`` (the same points)."""
+        frame, error, mount, view = self._frame, self._error, scan.mount, scan.field_of_view
+        return compiled.memory_recall(
+            plain(self._points), plain(self._uncertainty), float(frame.x), float(frame.y), math.cos(frame.yaw),
+            math.sin(frame.yaw), float(error[0]), float(error[1]), float(error[2]), float(scan_error[0]),
+            float(scan_error[1]), bool(any(scan_error)), self.max_range, float(tolerance), frozen(scan.ranges),
+            frozen(scan.readings), _HIT, _NO_RETURN, float(scan.range_max), float(scan.angle_min),
+            float(scan.angle_increment), float(mount.x), float(mount.y), float(mount.yaw),
+            bool(view >= TWO_PI - 1e-9), bool(view >= math.pi))
 
     def store(self, current: np.ndarray, recalled: np.ndarray, recalled_uncertainty: np.ndarray,
               current_uncertainty: np.ndarray | None = None) -> None:

@@ -65,6 +65,10 @@ def test_the_compiled_rows_are_the_numpy_rows(problem):
     view = view_of(points, uncertainty)
     a = compiled._constraints(view, velocity, dt, u_nom=u_nom)
     b = reference._constraints(view, velocity, dt, u_nom=u_nom)
+    # the cut keeps the same points, and the clearance is the same number
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.uncertainty, b.uncertainty)
+    assert a.clearance == b.clearance
     assert a.min_barrier == pytest.approx(b.min_barrier, abs=1e-12)
     np.testing.assert_allclose(a.barrier, b.barrier, atol=1e-12)
     # the same rows in the same order (the order the QP sees)
@@ -73,6 +77,37 @@ def test_the_compiled_rows_are_the_numpy_rows(problem):
     np.testing.assert_array_equal(a.rows.family, b.rows.family)
     np.testing.assert_allclose(a.rows.G, b.rows.G, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(a.rows.h, b.rows.h, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(problems(), st.floats(0.0, 2.5), st.floats(0.0, 1.0))
+def test_the_compiled_cut_is_the_numpy_cut(problem, near, farther):
+    """``cbf_distances`` and ``cbf_cut`` against the numpy they replace, bit for bit: every point's distance, the
+    cut's ceiling, the body's clearance (one centred disk, and the cover's disks), the points within ``near`` and the
+    smallest barrier (``BodyModel.barrier``) of those left out within ``near + farther``."""
+    robot, body_name, dt, _, points, uncertainty, _, _ = problem
+    safety = CBFSafetyFilter(robot, dt, body=body_name, kernels="numba")
+    compiled, body = safety._kernels, safety._shape.body
+    centred = body.n_disks == 1 and not body.centres.any()
+    spread = 0.0 if centred else float(np.max(np.hypot(body.centres[:, 0], body.centres[:, 1])))
+    distance, ceiling, clearance = compiled.cbf_distances(points, uncertainty, body.centres, body.radii, centred,
+                                                          spread)
+    expected = np.sqrt(points[:, 0] ** 2 + points[:, 1] ** 2)
+    np.testing.assert_array_equal(distance, expected)
+    assert clearance == safety._clearance(points, expected)
+    if not points.shape[0]:
+        assert ceiling == math.inf
+        return
+    assert ceiling == float(np.min(expected - uncertainty))
+    kept, kept_uncertainty, every, left_out = compiled.cbf_cut(
+        points, uncertainty, distance, near, near + farther, body.centres, body.radii, safety.lookahead, safety.margin)
+    within = expected - uncertainty <= near
+    np.testing.assert_array_equal(kept, points[within])
+    np.testing.assert_array_equal(kept_uncertainty, uncertainty[within])
+    assert every == bool(within.all())
+    outside = ~within & (expected - uncertainty <= near + farther)
+    assert left_out == (body.barrier(points[outside], safety.margin, uncertainty[outside], safety.lookahead)
+                        if outside.any() else math.inf)
 
 
 def test_a_point_at_a_control_point_gets_the_same_rows():
@@ -177,6 +212,39 @@ def test_the_compiled_shadow_points_are_the_numpy_ones(lidar_data, reach):
     np.testing.assert_array_equal(shadow_points(pair, reach, 0.3, compiled), shadow_points(pair, reach, 0.3))
 
 
+def test_the_compiled_readings_and_points_are_the_scans(lidar_data):
+    """Every real recorded scan (NaN, +-inf, readings below range_min and beyond range_max) and random scans with
+    every kind of reading, some with TOO_CLOSE beams: ``classify`` sets what the scan's numpy would compute (the
+    same readings, hit mask and count), read-only, and ``beam_points`` with the kernels gives the same points in the
+    same order (through numpy where a beam reads TOO_CLOSE, whose point depends on the body)."""
+    from safenav.filters.perception import beam_points, classify
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(11)
+    robot = preset("rosbot")
+    scans = _recorded_scans(lidar_data)
+    for _ in range(60):
+        ranges = rng.uniform(-1.0, 15.0, robot.lidar.n_beams)
+        for value, share in ((np.nan, 0.05), (np.inf, 0.2), (-np.inf, 0.01 * rng.integers(0, 2)), (0.0, 0.02)):
+            ranges[rng.random(ranges.size) < share] = value
+        scans.append(robot.scan(ranges))
+    assert len(scans) > 100
+    close = 0
+    for recorded in scans:
+        scan, twin = recorded.replace(), recorded.replace()     # nothing computed yet
+        assert "readings" not in scan.__dict__
+        classify((scan,), compiled)
+        assert "readings" not in twin.__dict__
+        np.testing.assert_array_equal(scan.readings, twin.readings)
+        assert scan.readings.dtype == twin.readings.dtype and not scan.readings.flags.writeable
+        np.testing.assert_array_equal(scan._hit_mask, twin._hit_mask)
+        assert scan.n_informative == twin.n_informative and type(scan.n_informative) is int
+        for body in (robot.radius, 0.05):
+            np.testing.assert_array_equal(beam_points((scan,), body, compiled=compiled), beam_points((twin,), body))
+        close += bool(np.any(scan.ranges == -np.inf))
+    assert close > 0
+
+
 @pytest.mark.parametrize("full_turn", [True, False])
 def test_an_occluder_at_the_first_beam_is_an_edge_only_round_a_full_turn(full_turn):
     """Beam 0 hits at 1 m, the last beam has no return: round a full turn they are neighbours (an edge of
@@ -255,6 +323,37 @@ def test_the_compiled_recall_test_is_the_numpy_one():
         met["silent"] += int(np.sum(nearest_only & ~b[0] & (uncertainty > 0.0)))
         met["narrowed"] += int(np.sum(b[2] < uncertainty))
     assert min(met.values()) > 50, met
+
+
+def test_the_compiled_memory_recall_is_the_numpy_one():
+    """PointMemory.recall with one scan taken at once, compiled (``memory_recall``: the move into the current frame,
+    the uncertainty, the range, the scan's spread, seen_again, the points kept) and numpy, on 1500 random scans and
+    memories carried by random motions with and without odometry error and scan error: the same points kept, to
+    rounding, with the same uncertainties; points are kept, dropped as seen again and dropped out of range."""
+    from safenav.filters.perception import PointMemory
+
+    compiled = kernels.load()
+    rng = np.random.default_rng(13)
+    kept = dropped = far = 0
+    for _ in range(1500):
+        scan, points, uncertainty = _memory_scan(rng)
+        memory = PointMemory(max_range=float(rng.choice([1.0, 3.0, 10.0])), capacity=1000)
+        memory.store(points, np.empty((0, 2)), np.empty(0), uncertainty)
+        for _ in range(int(rng.integers(0, 3))):
+            error = (0.0, 0.0) if rng.random() < 0.3 else (float(rng.uniform(0.0, 0.02)), float(rng.uniform(0.0, 0.02)))
+            memory.carry(Pose2D(*rng.normal(0.0, [0.1, 0.1, 0.3])), error)
+        scan_error = (0.0, 0.0) if rng.random() < 0.5 else (float(rng.uniform(0.0, 0.02)),
+                                                            float(rng.uniform(0.0, 0.01)))
+        a = memory.recall((scan,), tolerance=0.02, scan_error=scan_error, compiled=compiled)
+        b = memory.recall((scan,), tolerance=0.02, scan_error=scan_error)
+        assert a[0].shape == b[0].shape
+        np.testing.assert_allclose(a[0], b[0], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(a[1], b[1], rtol=0.0, atol=1e-12)
+        kept += a[0].shape[0]
+        moved = memory.points
+        far += int(np.sum(np.hypot(moved[:, 0], moved[:, 1]) > memory.max_range + memory.uncertainty + 0.05))
+        dropped += len(memory) - a[0].shape[0]
+    assert min(kept, dropped - far, far) > 100, (kept, dropped, far)
 
 
 def test_the_compiled_sqp_plans_every_recorded_problem_as_numpy_does():
