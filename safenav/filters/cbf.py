@@ -970,10 +970,11 @@ class CBFSafetyFilter(SafetyFilter):
             # No command satisfies every row: relax obstacle rows (never the hard ones) by one slack,
             # tier by tier, until some command keeps every row that is not relaxed.
             for tier in range(len(SLACK_TIERS)):
-                if tier == 0 and not self._stage(cand, problem, tier)[1].any():
+                stage = self._stage(cand, problem, tier)
+                if tier == 0 and not stage[1].any():
                     continue
                 z, working, more_time, solver_status = self._solve_generating(u_nom, cand, initial, problem,
-                                                                               slack=tier)
+                                                                               slack=tier, stage=stage)
                 solve_time += more_time
                 if z is not None:
                     break
@@ -1036,8 +1037,10 @@ class CBFSafetyFilter(SafetyFilter):
         return outcome
 
     def _solve_generating(self, u_nom: np.ndarray, rows: families.Rows, working: np.ndarray, problem: _Problem,
-                          slack: int | None = None) -> tuple[np.ndarray | None, np.ndarray, float, str]:
+                          slack: int | None = None, stage: tuple[np.ndarray, np.ndarray] | None = None
+                          ) -> tuple[np.ndarray | None, np.ndarray, float, str]:
         """Solve over the rows in ``working``, adding violated rows until none is (constraint generation).
+        ``stage``: the slack tier's :meth:`_stage` of ``rows``, when the caller has it.
 
         Returns the solution (``None`` on failure), the final working set, the solve time [s]
         and the solver's last status word. The answer equals that of the QP with all rows.
@@ -1045,10 +1048,11 @@ class CBFSafetyFilter(SafetyFilter):
         working = working.copy()
         solve_time = 0.0
         outcome = None
-        stage = None
         h, relaxed = rows.h, np.zeros(len(rows), dtype=bool)
         if slack is not None:   # the stage's right sides and relaxed rows, the same in every round
-            stage = h, relaxed = self._stage(rows, problem, slack)
+            stage = h, relaxed = self._stage(rows, problem, slack) if stage is None else stage
+        else:
+            stage = None
         assemble = self._assembler(u_nom, rows, problem, stage)
         violated = self._decide.cbf_violated
         for round_index in range(MAX_GENERATION_ROUNDS + 1):
