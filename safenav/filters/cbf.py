@@ -738,11 +738,14 @@ class CBFSafetyFilter(SafetyFilter):
 
     @staticmethod
     def _lifted(u: np.ndarray, problem: _Problem) -> np.ndarray:
-        """``z = (v, omega, t_v, t_omega)`` with the smallest auxiliaries ``u`` allows."""
-        t = np.abs(u)
-        if problem.velocity is not None:
-            t = np.maximum(t, np.abs(problem.velocity))
-        return np.concatenate((u, t))
+        """``z = (v, omega, t_v, t_omega)`` with the smallest auxiliaries ``u`` allows (Python floats: numpy's
+        per-call overhead would dominate; ``max`` keeps a NaN command's NaN, as ``np.maximum`` does)."""
+        v, omega = float(u[0]), float(u[1])
+        t_v, t_omega = abs(v), abs(omega)
+        velocity = problem.velocity
+        if velocity is not None:
+            t_v, t_omega = max(t_v, abs(float(velocity[0]))), max(t_omega, abs(float(velocity[1])))
+        return np.array((v, omega, t_v, t_omega))
 
     def _target(self, u_nom: np.ndarray) -> np.ndarray:
         """The command the QP's cost pulls towards: ``u_nom`` clipped to the limits, blended with the
