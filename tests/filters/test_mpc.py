@@ -89,6 +89,24 @@ def test_free_space_returns_the_nominal_exactly(name):
             assert np.array_equal(plan[1, 3:], result.u)
 
 
+@pytest.mark.parametrize(("name", "settings"), [("rosbot", {}), ("m2wr", {"body": "cover", "lookahead": 0.1}),
+                                                 ("puzzlebot", {"lookahead": 0.15})])
+def test_the_problem_reports_the_bodys_clearance_of_every_point(name, settings):
+    """The problem's clearance is BodyModel.clearance over every point of the view, the far ones the plan leaves
+    out too, to the last bit (it is taken from the distances the problem computes anyway), and inf without points."""
+    robot = preset(name)
+    safety = MPCSafetyFilter(robot, 0.05, **settings)
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        scene = Scene.of(*(Circle(tuple(rng.uniform(-4.0, 4.0, 2)), float(rng.uniform(0.05, 0.4))) for _ in range(6)))
+        scan = synthetic_scan(robot, scene, Pose2D(), noise_std=0.01, rng=rng)
+        view = safety._observe(safety._match((scan,)))
+        problem = safety._problem(np.array([0.3, 0.0]), view, np.zeros(2), 1)
+        assert problem.clearance == safety.body.clearance(view.points)
+    empty = safety._observe(safety._match((robot.scan(),)))
+    assert safety._problem(np.array([0.3, 0.0]), empty, np.zeros(2), 1).clearance == math.inf
+
+
 def test_horizon_is_one_second_or_what_stopping_needs_and_short_periods_interpolate():
     assert mpc(preset("rosbot")).horizon == 20
     assert mpc(preset("m2wr")).horizon == 21          # 1 m/s at 1 m/s^2: 20 braking steps

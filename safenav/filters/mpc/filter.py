@@ -587,6 +587,8 @@ class MPCSafetyFilter(SafetyFilter):
             now = np.hypot(points[:, None, 0] - offsets[None, :, 0], points[:, None, 1] - offsets[None, :, 1])
             barriers = now[:, :self.n_body] - uncertainty[:, None] - (body.radii + self.margin)[None, :]
             min_barrier = float(np.min(barriers))
+            # BodyModel.clearance of every point, from the same distances (the body's disks are the first offsets)
+            clearance = float(np.min(now[:, :self.n_body] - body.radii[None, :]))
             reach = self._reach(velocity) + float(np.max(np.hypot(offsets[:, 0], offsets[:, 1]) + inflated))
             ranges = np.hypot(points[:, 0], points[:, 1])
             keep = ranges <= reach + buffer + uncertainty
@@ -597,7 +599,7 @@ class MPCSafetyFilter(SafetyFilter):
             now = np.empty((0, offsets.shape[0]))
             ranges = np.empty(0)
             remembered = np.empty(0, dtype=bool)
-            min_barrier = math.inf
+            min_barrier = clearance = math.inf
         guaranteed = inflated[None, :] + uncertainty[:, None]
         # The planner also keeps the growth of a point's uncertainty at the next carry by the measured
         # velocity (A5's trapezoid: half the period times the velocity change, at most the acceleration
@@ -616,7 +618,7 @@ class MPCSafetyFilter(SafetyFilter):
         lower, upper = self._bounds(velocity, view.frontier, hold,
                                     self._blind_cap(u_nom, velocity, view, hold, len(self._speed_ramps[0])))
         return MPCProblem(u_nom, velocity.copy(), points, uncertainty, planned, guaranteed, floor, lower, upper,
-                          self._layout_for(hold), view.frontier, min_barrier, body.clearance(view.points))
+                          self._layout_for(hold), view.frontier, min_barrier, clearance)
 
     # ------------------------------------------------------------------ plans
 
