@@ -20,7 +20,7 @@ import qpsolvers
 from safenav import _checks
 from safenav.filters import kernels
 from safenav.filters import rows as families
-from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, as_scans
+from safenav.filters.base import FilterResult, FilterStatus, Reason, SafetyFilter, View, _read_only, as_scans
 from safenav.filters.body import BodyModel
 from safenav.filters.deadline import StepClock
 from safenav.filters.defaults import (
@@ -942,7 +942,7 @@ class CBFSafetyFilter(SafetyFilter):
                                                               problem.upper, VERIFY_TOLERANCE)
         if candidate.size == 0:
             # No row can bind anywhere in the box: the QP is separable, its answer the clipped target.
-            u = np.clip(self._target(u_nom), lower, upper)
+            u = _clipped(self._target(u_nom), lower, upper)
             return FilterResult(u=u, u_nom=u_nom, status=FilterStatus.OK,
                                 reason=self._binding(u, u_nom, rows, -1, points, problem), **details)
         cand = families.Rows(*taken)
@@ -992,7 +992,7 @@ class CBFSafetyFilter(SafetyFilter):
         if tier is not None:
             stage_h, stage_relaxed = self._stage(rows, problem, tier)
             bound = stage_h + np.where(stage_relaxed, slack, 0.0)
-        u = np.clip(z[:2], lower, upper)
+        u = _clipped(z, lower, upper)
         frontier = view.frontier
         # Exactly never faster towards an unseen side than the blind rows allow (the solver meets rows to ~1e-10).
         if frontier.backward:
@@ -1002,7 +1002,7 @@ class CBFSafetyFilter(SafetyFilter):
         rows_used = candidate[working]
         worst, excess, soft_worst, binding, used, active = self._decide.cbf_answer(
             G, h, _plain(bound), row_family, row_point, self._lifted(u, problem),
-            self._lifted(np.clip(u_nom, lower, upper), problem), rows_used, len(points), families.FIRST_HARD,
+            self._lifted(_clipped(u_nom, lower, upper), problem), rows_used, len(points), families.FIRST_HARD,
             ACTIVE_TOLERANCE)
         if not excess <= VERIFY_TOLERANCE:   # (NaN too)
             return self._brake(u_nom, velocity, FilterStatus.FALLBACK, "solver",
@@ -1019,9 +1019,9 @@ class CBFSafetyFilter(SafetyFilter):
                        "holding its distance (no command in the box leaves at the recovery rate)")
                 reason = Reason("barrier", f"inside the margin (barrier {problem.min_barrier:.3f} m); {how}",
                                 _nearest(points, problem.barrier))
-        return FilterResult(
-            u=u, u_nom=u_nom, status=status, reason=reason, n_constraints=int(working.sum()),
-            constraint_points=points[used], active=np.flatnonzero(active[used]),
+        return FilterResult(   # (arrays of this call's own: read-only as they are, not copied again)
+            u=_read_only(u), u_nom=u_nom, status=status, reason=reason, n_constraints=int(working.sum()),
+            constraint_points=_read_only(points[used]), active=np.flatnonzero(active[used]),
             slack=slack * period if status is FilterStatus.SLACK else 0.0, solver=self.backend.name,
             solve_time=solve_time, **details,
         )
@@ -1077,7 +1077,7 @@ class CBFSafetyFilter(SafetyFilter):
         command nearest a stop already does: the usual case, a blind side the base is not moving towards)."""
         if not len(hard):
             return True
-        stop = self._lifted(np.clip(np.zeros(2), *problem.limits), problem)
+        stop = self._lifted(_clipped((0.0, 0.0), *problem.limits), problem)
         if np.all(hard.G @ stop <= hard.h):
             return True
         qp = QPData(np.diag([1e-6, 1e-6, 1e-6, 1e-6]), np.zeros(4), np.vstack((self._abs_rows.G, hard.G)),
@@ -1132,6 +1132,19 @@ _ROW_TEXT = {"barrier": "keeps the barrier condition", "braking": "keeps the spe
              "sweep": "caps the speed along a heading the base may still turn to",
              "gap": "does not move towards space behind invalid beams"}
 """What a binding row of each family (but ``blind``, :func:`_blind_text`) does, for the reason."""
+
+
+def _clipped(u: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """``np.clip(u, lower, upper)`` of a command ``(v, omega)``, to the bit (NaN kept, the bound taken on a tie, as
+    numpy's clip does), in Python floats: numpy's per-call overhead would dominate."""
+    v, omega = float(u[0]), float(u[1])
+    low, high = float(lower[0]), float(upper[0])
+    v = v if v != v or v > low else low
+    v = v if v != v or v < high else high
+    low, high = float(lower[1]), float(upper[1])
+    omega = omega if omega != omega or omega > low else low
+    omega = omega if omega != omega or omega < high else high
+    return np.array((v, omega))
 
 
 def _blind_text(speed: float) -> str:

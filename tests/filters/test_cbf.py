@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from types import SimpleNamespace
 
@@ -786,3 +787,31 @@ def test_a_row_no_command_in_the_box_keeps_needs_no_qp_to_say_the_rows_need_slac
                     skipped += 1
                     assert fast.status in (FilterStatus.SLACK, FilterStatus.RECOVERING, FilterStatus.BRAKING)
     assert skipped >= 8
+
+
+_SPECIAL = [0.0, -0.0, 0.3, -0.3, 5e-324, -1.0, 1.0, math.nan, math.inf, -math.inf]
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_the_commands_python_arithmetic_is_numpys_to_the_bit():
+    """The decision's clip of a command and its lifted ``z`` (Python floats, for speed) give numpy's ``np.clip`` and
+    ``(u, max(|u|, |velocity|))`` to the bit on every pair of special values (signed zeros, NaN, infinities, the
+    smallest subnormal), bounds equal to the value included."""
+    from safenav.filters.cbf import _clipped
+
+    count = 0
+    for v, omega in itertools.product(_SPECIAL, repeat=2):
+        u = np.array([v, omega])
+        for low, high in itertools.product(_SPECIAL[:7], repeat=2):
+            if not low <= high:
+                continue
+            lower, upper = np.array([low, -high]), np.array([high, -low])
+            assert _same_bits(_clipped(u, lower, upper), np.clip(u, lower, upper)), (u, lower, upper)
+            count += 1
+        for velocity in (None, np.array([0.5, -0.0]), np.array([-0.0, 3.0]), np.array([-1e-300, 0.0])):
+            t = np.abs(u) if velocity is None else np.maximum(np.abs(u), np.abs(velocity))
+            assert _same_bits(CBFSafetyFilter._lifted(u, SimpleNamespace(velocity=velocity)), np.concatenate((u, t)))
+    assert count > 2000
