@@ -53,11 +53,11 @@ class LidarMismatch(SafeNavError, ValueError):
 
 
 class InvalidCommand(SafeNavError, ValueError):
-    """A velocity command ``(v, omega)`` of the wrong shape."""
+    """A velocity command ``(v, omega)`` (or a call's measured velocity or odometry pose) of the wrong shape."""
 
 
 class InvalidCommandType(InvalidCommand, TypeError):
-    """A velocity command that is not a pair of real numbers."""
+    """A velocity command (or a call's measured velocity or odometry pose) that is not made of real numbers."""
 
 
 class InvalidConfig(SafeNavError, ValueError):

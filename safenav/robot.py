@@ -107,6 +107,28 @@ def as_command(u: Any, name: str = "u") -> np.ndarray:
     return array.astype(float)
 
 
+def as_pose(pose: Any, name: str = "pose") -> Pose2D:
+    """``pose`` (a :class:`~safenav.geometry.Pose2D` or three real numbers ``(x [m], y [m], yaw [rad])``) as a Pose2D of
+    floats; the values may still be non-finite.
+
+    Raises:
+        InvalidCommandType: ``pose`` is not three real numbers (``None``, strings, objects).
+        InvalidCommand: ``pose`` has the wrong number of values.
+    """
+    if isinstance(pose, (str, bytes)):
+        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}")
+    try:
+        array = np.asarray(pose)
+    except (TypeError, ValueError):
+        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}") from None
+    if array.dtype.kind not in "fiu":
+        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}")
+    if array.shape != (3,):
+        raise InvalidCommand(f"{name} must be (x [m], y [m], yaw [rad]), shape (3,), got {pose!r} of shape "
+                             f"{array.shape}")
+    return Pose2D(float(array[0]), float(array[1]), float(array[2]))
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     array.flags.writeable = False
     return array

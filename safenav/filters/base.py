@@ -62,7 +62,7 @@ from safenav.filters.perception import (
     unknown_region,
 )
 from safenav.geometry import Pose2D, unicycle_step
-from safenav.robot import RobotSpec, as_command
+from safenav.robot import RobotSpec, as_command, as_pose
 from safenav.scan import LaserScan
 
 __all__ = [
@@ -207,6 +207,10 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 
 
 _NO_POINTS = _read_only(np.empty((0, 2)))
+
+
+def _finite_pose(pose: Pose2D) -> bool:
+    return math.isfinite(pose.x) and math.isfinite(pose.y) and math.isfinite(pose.yaw)
 
 
 def _finite(pair: np.ndarray) -> bool:
@@ -621,7 +625,9 @@ class SafetyFilter(abc.ABC):
             The command to send and what the filter did.
 
         Raises:
-            InvalidCommand: ``u_nom`` or ``velocity`` is not a pair of numbers.
+            InvalidCommand: ``u_nom`` or ``velocity`` is not a pair of numbers, or ``pose`` is not three (a pose
+                that is not finite is an odometry glitch: the call brakes with ``BAD_INPUT`` and carries the
+                remembered points as without the pose).
             InvalidScanType: ``scan`` is not a LaserScan (or a sequence of them).
         """
         start = time.perf_counter()
@@ -633,13 +639,18 @@ class SafetyFilter(abc.ABC):
             nominal = as_command(u_nom, "u_nom")
             scans = self._match(as_scans(scan))
             current = None if velocity is None else as_command(velocity, "velocity")
+            odometry = None if pose is None else as_pose(pose)
+            if odometry is not None and not _finite_pose(odometry):   # a glitch: carried as without the pose
+                glitch, odometry = odometry, None
+            else:
+                glitch = None
             period, clock_note = self._clock(now)
             base_note = self._check_base(current, period if period is not None else self.dt)
             if self._called:   # the last command, held since the previous call, and the velocities measured then
                 self._returned.append(self._period_since(period, current))
-            self._carry(period if period is not None else self.dt, current, pose)
+            self._carry(period if period is not None else self.dt, current, odometry)
             result = self._screened(nominal, scans, current, scan_age, now, period,
-                                    "; ".join(note for note in (clock_note, base_note) if note))
+                                    "; ".join(note for note in (clock_note, base_note) if note), glitch)
             result = self._watch_progress(result)
             self._last_command = np.array(result.u, dtype=float)
             self._called = True
@@ -730,9 +741,8 @@ class SafetyFilter(abc.ABC):
                         f"base's lag")
         return ""
 
-    def _carry(self, elapsed: float, velocity: np.ndarray | None, pose: Any) -> None:
-        """Move the remembered points by the motion since the previous call."""
-        odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
+    def _carry(self, elapsed: float, velocity: np.ndarray | None, odometry: Pose2D | None) -> None:
+        """Move the remembered points by the motion since the previous call (``odometry``: the pose now, finite)."""
         moving = self._called and ((self.memory is not None and len(self.memory)) or
                                    (self.seen_free is not None and len(self.seen_free)))
         if moving:
@@ -799,23 +809,27 @@ class SafetyFilter(abc.ABC):
             now: as :meth:`filter`'s.
 
         Raises:
-            InvalidCommand: ``velocity`` is not a pair of numbers.
+            InvalidCommand: ``velocity`` is not a pair of numbers, or ``pose`` is not three.
             InvalidConfig: ``now`` is not a number.
         """
         current = None if velocity is None else as_command(velocity, "velocity")
         now = None if now is None else _checks.number("now", now)
+        odometry = None if pose is None else as_pose(pose)
+        if odometry is not None and not _finite_pose(odometry):
+            odometry = None     # as the call does: carried as without the pose
         if self.memory is None or not self._called or len(self.memory) == 0:
             return np.empty((0, 2))
         elapsed = self.dt
         if now is not None and self._last_time is not None:
             since = now - self._last_time
             elapsed = since if since >= 0.0 else elapsed
-        odometry = None if pose is None else Pose2D(*(float(value) for value in pose))
         return self.memory.moved(self._motion(elapsed, current, odometry)[0])
 
     def _screened(self, nominal: np.ndarray, scans: tuple[LaserScan, ...], current: np.ndarray | None,
-                  scan_age: Any, now: float | None, period: float | None, clock_note: str) -> FilterResult:
-        """The checks every filter needs around :meth:`_filter` (see :meth:`filter`)."""
+                  scan_age: Any, now: float | None, period: float | None, clock_note: str,
+                  glitch: Pose2D | None = None) -> FilterResult:
+        """The checks every filter needs around :meth:`_filter` (see :meth:`filter`; ``glitch``: the odometry pose
+        given, when it is not finite)."""
         warnings = (clock_note,) if clock_note else ()
         # The command is held until the next call: dt, or a late call's measured period (A3). Braking too is
         # planned for that period: the nearest stop the acceleration limits reach within it.
@@ -824,6 +838,11 @@ class SafetyFilter(abc.ABC):
         if current is not None and not _finite(current):
             return self._brake(nominal, None, FilterStatus.BAD_INPUT, "bad_input",
                                f"velocity is not finite: {current.tolist()}", warnings=warnings, period=held)
+        if glitch is not None:
+            carried = "the measured velocities" if current is not None else "the commands"
+            return self._brake(nominal, current, FilterStatus.BAD_INPUT, "bad_input",
+                               f"pose is not finite: {tuple(glitch)}; the remembered points were carried by {carried}",
+                               warnings=warnings, period=held)
         ages, stale = self._ages(scans, scan_age, now)
         if stale:
             return self._brake(nominal, current, FilterStatus.STALE, "stale", stale, warnings=warnings, period=held)

@@ -108,7 +108,7 @@ import numpy as np
 from safenav import _checks
 from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, progress
 from safenav.geometry import Pose2D, unicycle_step, wrap_angle
-from safenav.robot import RobotSpec, as_command
+from safenav.robot import RobotSpec, as_command, as_pose
 from safenav.scan import LaserScan
 
 __all__ = ["Escape", "EscapeConfig"]
@@ -315,7 +315,9 @@ class Escape:
         """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
         nominal = as_command(u_nom, "u_nom")
         if kwargs.get("pose") is not None:
-            self._odometry = Pose2D(*(float(value) for value in kwargs["pose"]))
+            odometry = as_pose(kwargs["pose"])
+            if all(math.isfinite(value) for value in odometry):   # (a glitch: the wrapped filter brakes and says so)
+                self._odometry = odometry
         pending, self._pending = self._pending, False
         starting = pending and bool(np.all(np.isfinite(nominal)))
         if self._side or starting:

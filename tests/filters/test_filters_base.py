@@ -142,6 +142,65 @@ def test_non_finite_nominal_brakes_with_bad_input(make, u_nom):
     assert "u_nom is not finite" in result.message
 
 
+def _along_a_wall(safety, robot, steps: int = 30):
+    """Drive the m2wr (its lidar sees the front half only) along a wall on its left, the odometry pose given: the
+    wall behind it is then remembered. Returns the last scan, pose and velocity."""
+    scene = Scene.of(wall(0.45, math.pi / 2, 6.0))
+    pose, velocity = Pose2D(), np.zeros(2)
+    for _ in range(steps):
+        scan = synthetic_scan(robot, scene, pose)
+        result = safety.filter((0.3, 0.0), scan, velocity=velocity, pose=tuple(pose))
+        velocity = np.array(result.u)
+        pose = unicycle_step(pose, float(velocity[0]), float(velocity[1]), DT)
+    return synthetic_scan(robot, scene, pose), pose, velocity
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize("bad", [(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (1.0, 2.0, -math.inf)])
+def test_a_non_finite_pose_brakes_with_bad_input_and_keeps_the_memory(make, bad):
+    """An odometry glitch (a NaN or infinite pose) is bad input like a non-finite velocity: the call brakes and says
+    so, and the remembered points are carried by the measured velocity instead of being moved to NaN and forgotten
+    (the m2wr's memory holds the wall behind it, which its lidar no longer sees); the next call with a finite pose
+    has them all, with the odometry from there on."""
+    robot = preset("m2wr")
+    safety = make(robot)
+    scan, pose, velocity = _along_a_wall(safety, robot)
+    remembered = len(safety.memory)
+    assert remembered > 100
+    carried = safety.remembered_points(velocity=velocity)      # where a call without the pose puts them
+    assert np.all(np.isfinite(carried)) and carried.shape[0] == remembered
+    result = safety.filter((0.3, 0.0), scan, velocity=velocity, pose=bad)
+    assert result.status is FilterStatus.BAD_INPUT and result.braked
+    assert "pose is not finite" in result.message
+    assert result.u == pytest.approx(robot.brake(velocity, DT))
+    # carried by the velocity, not forgotten (and the pose given to an inspection is taken as the call takes it)
+    np.testing.assert_allclose(safety.memory.points, carried, atol=1e-12)
+    np.testing.assert_allclose(safety.remembered_points(velocity=velocity, pose=bad),
+                               safety.remembered_points(velocity=velocity), atol=1e-12)
+    after = safety.filter((0.3, 0.0), scan, velocity=velocity, pose=tuple(pose))
+    assert after.status is not FilterStatus.BAD_INPUT and len(safety.memory) >= 0.9 * remembered
+
+
+@pytest.mark.parametrize("make", FILTERS)
+@pytest.mark.parametrize(("pose", "error"), [
+    ((1.0, 2.0), InvalidCommand), ("abc", InvalidCommandType), ((1.0, 2.0, "x"), InvalidCommandType),
+    ((1.0, 2.0, 3.0, 4.0), InvalidCommand), (None, None)])
+def test_a_pose_that_is_not_three_numbers_is_a_clear_error(make, pose, error):
+    """``pose`` must be ``(x [m], y [m], yaw [rad])`` (or a Pose2D): two numbers (a forgotten yaw would have been
+    taken as 0 and moved every remembered point wrong) or text are an InvalidCommand, a SafeNavError and a
+    ValueError/TypeError, that names the value."""
+    robot = preset("rosbot")
+    safety = make(robot)
+    if error is None:
+        assert safety.filter((0.1, 0.0), robot.scan(), pose=Pose2D(1.0, 2.0, 0.5)).status is FilterStatus.OK
+        return
+    with pytest.raises(error, match="pose") as caught:
+        safety.filter((0.1, 0.0), robot.scan(), pose=pose)
+    assert isinstance(caught.value, SafeNavError) and isinstance(caught.value, ValueError)
+    with pytest.raises(error, match="pose"):
+        safety.remembered_points(pose=pose)
+
+
 @pytest.mark.parametrize("make", FILTERS)
 def test_non_finite_velocity_brakes_with_bad_input(make):
     robot = preset("rosbot")
@@ -366,3 +425,21 @@ def test_a_deadlock_reads_as_a_sentence():
     assert str(Deadlock(1.5, None, "acceleration")) == "deadlocked for 1.5 s by an acceleration constraint"
     assert str(Deadlock(2.0, (1.0, -0.25), "barrier")) == ("deadlocked for 2.0 s by a barrier constraint "
                                                            "at (1.00, -0.25) m")
+
+
+def test_the_escape_keeps_its_odometry_through_a_pose_glitch():
+    """The deadlock escape tracks its m-line by the odometry pose: a NaN pose is not taken (it dead-reckons on
+    from the last one; the wrapped filter brakes and says so), and a pose that is not three numbers is the same clear
+    error as the filter's."""
+    from safenav.filters import Escape
+
+    robot = preset("m2wr")
+    escape = Escape(CBFSafetyFilter(robot, DT))
+    escape.filter((0.3, 0.0), robot.scan(), velocity=(0.0, 0.0), pose=(1.0, 2.0, 0.5))
+    result = escape.filter((0.3, 0.0), robot.scan(), velocity=(0.0, 0.0), pose=(math.nan, 2.0, 0.5))
+    assert result.status is FilterStatus.BAD_INPUT and "pose is not finite" in result.message
+    odometry = escape._odometry     # dead-reckoned on by the commands from the last finite pose, not NaN
+    assert all(math.isfinite(value) for value in odometry)
+    assert math.hypot(odometry.x - 1.0, odometry.y - 2.0) < 0.05 and abs(odometry.yaw - 0.5) < 0.05
+    with pytest.raises(InvalidCommand, match="pose"):
+        escape.filter((0.3, 0.0), robot.scan(), pose=(1.0, 2.0))
