@@ -94,17 +94,7 @@ def as_command(u: Any, name: str = "u") -> np.ndarray:
         InvalidCommandType: ``u`` is not a pair of real numbers (``None``, strings, objects).
         InvalidCommand: ``u`` has the wrong shape.
     """
-    if u is None or isinstance(u, (str, bytes)):
-        raise InvalidCommandType(f"{name} must be a pair (v [m/s], omega [rad/s]) of real numbers, got {u!r}")
-    try:
-        array = np.asarray(u)
-    except (TypeError, ValueError):
-        raise InvalidCommandType(f"{name} must be a pair (v [m/s], omega [rad/s]) of real numbers, got {u!r}") from None
-    if array.dtype.kind not in "fiu":
-        raise InvalidCommandType(f"{name} must be a pair (v [m/s], omega [rad/s]) of real numbers, got {u!r}")
-    if array.shape != (2,):
-        raise InvalidCommand(f"{name} must have shape (2,) as (v [m/s], omega [rad/s]), got shape {array.shape}")
-    return array.astype(float)
+    return _real_values(u, name, "a pair", "(v [m/s], omega [rad/s])", 2)
 
 
 def as_pose(pose: Any, name: str = "pose") -> Pose2D:
@@ -115,18 +105,24 @@ def as_pose(pose: Any, name: str = "pose") -> Pose2D:
         InvalidCommandType: ``pose`` is not three real numbers (``None``, strings, objects).
         InvalidCommand: ``pose`` has the wrong number of values.
     """
-    if isinstance(pose, (str, bytes)):
-        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}")
+    x, y, yaw = _real_values(pose, name, "three values", "(x [m], y [m], yaw [rad])", 3).tolist()
+    return Pose2D(x, y, yaw)
+
+
+def _real_values(value: Any, name: str, count: str, fields: str, size: int) -> np.ndarray:
+    """``value`` as a float array of shape ``(size,)`` (the values ``fields`` names, ``count`` in words), or the error
+    that names ``name`` and what was wrong."""
+    if value is None or isinstance(value, (str, bytes)):
+        raise InvalidCommandType(f"{name} must be {count} {fields} of real numbers, got {value!r}")
     try:
-        array = np.asarray(pose)
+        array = np.asarray(value)
     except (TypeError, ValueError):
-        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}") from None
+        raise InvalidCommandType(f"{name} must be {count} {fields} of real numbers, got {value!r}") from None
     if array.dtype.kind not in "fiu":
-        raise InvalidCommandType(f"{name} must be (x [m], y [m], yaw [rad]) as real numbers, got {pose!r}")
-    if array.shape != (3,):
-        raise InvalidCommand(f"{name} must be (x [m], y [m], yaw [rad]), shape (3,), got {pose!r} of shape "
-                             f"{array.shape}")
-    return Pose2D(float(array[0]), float(array[1]), float(array[2]))
+        raise InvalidCommandType(f"{name} must be {count} {fields} of real numbers, got {value!r}")
+    if array.shape != (size,):
+        raise InvalidCommand(f"{name} must have shape {(size,)} as {fields}, got shape {array.shape}")
+    return array.astype(float)
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

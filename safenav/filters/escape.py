@@ -106,7 +106,7 @@ from typing import Any
 import numpy as np
 
 from safenav import _checks
-from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, progress
+from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, _finite_pose, progress
 from safenav.geometry import Pose2D, unicycle_step, wrap_angle
 from safenav.robot import RobotSpec, as_command, as_pose
 from safenav.scan import LaserScan
@@ -316,7 +316,7 @@ class Escape:
         nominal = as_command(u_nom, "u_nom")
         if kwargs.get("pose") is not None:
             odometry = as_pose(kwargs["pose"])
-            if all(math.isfinite(value) for value in odometry):   # (a glitch: the wrapped filter brakes and says so)
+            if _finite_pose(odometry):   # (a glitch: the wrapped filter brakes and says so)
                 self._odometry = odometry
         pending, self._pending = self._pending, False
         starting = pending and bool(np.all(np.isfinite(nominal)))
