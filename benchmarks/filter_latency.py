@@ -30,6 +30,11 @@ m2wr at 20 ms): with the numpy kernels or numba's, with the heap as built or fro
 (:mod:`safenav.filters.heap`), each in a fresh process: how many objects a collection visits, its median and
 largest pause. Such a pause lands in whichever control call the allocations trigger it in.
 
+``--startup`` times what a robot's control process pays before its first command, each run in a fresh process
+(the filters' own imports only, not the simulator's): importing :mod:`safenav.filters`, building a CBF and an MPC
+filter of the ROSbot at 50 ms (numba's kernels loaded from its cache), and the first call of each on a wall 0.5 m
+ahead; median and max over the runs, and which ``safenav`` was measured (``--startup-tree`` picks another tree's).
+
 Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``)::
 
     python -m benchmarks.filter_latency --deadline --json latency.json
@@ -37,6 +42,7 @@ Run ``python -m benchmarks.filter_latency --help`` (or ``safenav bench latency``
     python -m benchmarks.filter_latency --only-deadline --deadline-budget 0.1 --deadline-robots m2wr
     python -m benchmarks.filter_latency --reach --only-reach
     python -m benchmarks.filter_latency --gc --only-gc
+    python -m benchmarks.filter_latency --only-startup --startup-runs 20
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from collections.abc import Callable, Sequence
@@ -59,6 +66,7 @@ import qpsolvers
 if __package__ in (None, ""):  # run as a script: make the repository importable
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
+import safenav
 from benchmarks.common import markdown_table, summary, write_json
 from safenav.filters import CBFSafetyFilter, FilterStatus, MPCSafetyFilter, SafetyFilter, available_solvers
 from safenav.filters.defaults import BUDGET_FRACTION
@@ -433,6 +441,49 @@ def gc_pauses(repeat: int = 20) -> list[dict[str, Any]]:
     return rows
 
 
+_STARTUP_SCRIPT = textwrap.dedent("""
+    import json, time
+    start = time.perf_counter()
+    import safenav.filters
+    imported = time.perf_counter()
+    from safenav import preset
+    from safenav.synthetic import Scene, synthetic_scan, wall
+    robot = preset("rosbot")
+    scan = synthetic_scan(robot, Scene.of(wall(distance=0.5)))
+    marks = {"import": imported - start}
+    for name, make in (("cbf", safenav.filters.CBFSafetyFilter), ("mpc", safenav.filters.MPCSafetyFilter)):
+        begin = time.perf_counter()
+        filt = make(robot, 0.05)
+        built = time.perf_counter()
+        filt.filter((0.5, 0.0), scan, velocity=(0.1, 0.0))
+        marks[name + "_build"], marks[name + "_first_call"] = built - begin, time.perf_counter() - built
+    marks["total"] = time.perf_counter() - start
+    print(json.dumps({"safenav": safenav.__file__, "times_s": marks}))
+""")
+STARTUP_PHASES = ("import", "cbf_build", "cbf_first_call", "mpc_build", "mpc_first_call", "total")
+"""The phases of the --startup table, in the order a process goes through them."""
+
+
+def startup(runs: int = 10, tree: str | None = None) -> dict[str, Any]:
+    """Each phase of a fresh process's start in seconds (see the module docstring): median and max over ``runs``;
+    ``tree``: the directory holding the ``safenav`` package measured (default: the one this module imports)."""
+    tree = tree or os.path.dirname(os.path.dirname(os.path.abspath(safenav.__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (tree, os.environ.get("PYTHONPATH"))))}
+    samples: dict[str, list[float]] = {phase: [] for phase in STARTUP_PHASES}
+    measured = ""
+    for _ in range(runs):
+        # From the system's temporary directory, so that the working directory's safenav is not the one taken.
+        output = subprocess.run([sys.executable, "-c", _STARTUP_SCRIPT], cwd=tempfile.gettempdir(), env=env,
+                                check=True, capture_output=True, text=True).stdout
+        report = json.loads(output.strip().splitlines()[-1])
+        measured = os.path.dirname(report["safenav"])
+        for phase in STARTUP_PHASES:
+            samples[phase].append(report["times_s"][phase])
+    return {"safenav": measured, "runs": runs,
+            "phases": {phase: {"median_s": float(np.median(values)), "max_s": float(np.max(values))}
+                       for phase, values in samples.items()}}
+
+
 def deadline_table(rows: Sequence[dict[str, Any]]) -> str:
     table = []
     for row in rows:
@@ -488,6 +539,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
     parser.add_argument("--reach-calls", type=int, default=2000, help="calls per scene of --reach (default: 2000)")
     parser.add_argument("--gc", action="store_true", help="time a full garbage collection (see the docstring)")
     parser.add_argument("--only-gc", action="store_true", help="run the --gc table alone")
+    parser.add_argument("--startup", action="store_true",
+                        help="time a fresh process's import, filters' construction and first calls")
+    parser.add_argument("--only-startup", action="store_true", help="run the --startup table alone")
+    parser.add_argument("--startup-runs", type=int, default=10, help="fresh processes of --startup (default: 10)")
+    parser.add_argument("--startup-tree", metavar="DIR",
+                        help="the directory holding the safenav measured by --startup (default: this one's)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="write the results as JSON")
     args = parser.parse_args(argv)
@@ -515,6 +572,17 @@ def main(argv: Sequence[str] | None = None, prog: str = "filter_latency") -> int
                                row["frozen_objects"], row["median_ms"], row["max_ms"]] for row in results["gc"]]))
         print()
         if args.only_gc:
+            write_json(args.json, results)
+            return 0
+    if args.startup or args.only_startup:
+        results["startup"] = startup(args.startup_runs, args.startup_tree)
+        print(f"a fresh process's start, {args.startup_runs} runs (safenav from {results['startup']['safenav']}; "
+              f"ROSbot, dt 0.05 s, a wall 0.5 m ahead):")
+        print(markdown_table(["phase", "median s", "max s"],
+                             [[phase, times["median_s"], times["max_s"]]
+                              for phase, times in results["startup"]["phases"].items()]))
+        print()
+        if args.only_startup:
             write_json(args.json, results)
             return 0
     if args.deadline or args.only_deadline:

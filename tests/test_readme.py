@@ -197,6 +197,45 @@ def test_the_core_wheel_resolves_for_a_robot_computer(tmp_path):
     assert "Would install" in resolved.stdout and "casadi" in resolved.stdout and "pybullet" not in resolved.stdout
 
 
+# What a robot's control process loads: importing and running the filters with their default back-end (and the MPC
+# with a lagging base) must not pull in the modules only other back-ends or nothing use: scipy.signal alone took
+# 1.2 s of a 2 s import, qpsolvers with scipy.sparse and scipy.stats 0.5 s more (benchmarks.filter_latency --startup).
+UNUSED_MODULES = ("scipy.signal", "scipy.sparse", "scipy.stats", "qpsolvers", "osqp", "pybullet", "matplotlib")
+
+LOADED = """
+import json, sys
+from safenav import preset
+from safenav.filters import MPCConfig, make_filter
+from safenav.synthetic import Scene, synthetic_scan, wall
+
+robot = preset("rosbot")
+scan = synthetic_scan(robot, Scene.of(wall(distance=0.5)))
+statuses = [make_filter(name, robot, 0.05, **options).filter((0.5, 0.0), scan, velocity=(0.1, 0.0)).status.value
+            for name, options in (("cbf", {}), ("mpc", {}), ("mpc", {"config": MPCConfig(time_constant=0.1)}))]
+print(json.dumps({"statuses": statuses, "loaded": sorted(sys.modules)}))
+"""
+
+
+def test_the_filters_load_only_the_modules_they_use():
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", LOADED], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.splitlines()[-1])
+    assert report["statuses"] == ["ok"] * 3
+    assert [name for name in report["loaded"] if name.startswith(UNUSED_MODULES)] == []
+
+
+def test_another_back_end_still_loads_what_it_needs():
+    from safenav.filters import CBFSafetyFilter
+    from safenav.filters.qp import available_solvers, make_backend
+
+    assert {"daqp", "osqp"} <= set(available_solvers())
+    assert type(make_backend("qpsolvers:daqp")).__name__ == "QpsolversBackend"
+    assert CBFSafetyFilter(__import__("safenav").preset("rosbot"), 0.05, solver="osqp").backend.name == "osqp"
+
+
 @pytest.mark.slow
 def test_the_core_install_runs_both_filters_in_a_fresh_venv(tmp_path):
     """The real thing behind the import check above: ``pip install .`` with no extra, then the filters."""

@@ -12,10 +12,9 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-import qpsolvers
 
 from safenav import _checks
 from safenav.filters import kernels
@@ -36,6 +35,9 @@ from safenav.filters.perception import nearest_per_bin
 from safenav.filters.qp import DirectDAQP, QPBackend, QPData, QPOutcome, make_backend
 from safenav.robot import RobotSpec
 from safenav.scan import LaserScan
+
+if TYPE_CHECKING:
+    import qpsolvers
 
 __all__ = ["CBFConfig", "CBFSafetyFilter"]
 

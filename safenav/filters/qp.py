@@ -11,15 +11,21 @@ the constraints itself: qpsolvers returns ``None`` on failure, and OSQP can repo
 
 from __future__ import annotations
 
+import importlib.util
 import time
-from typing import Any, NamedTuple, Protocol
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
-import qpsolvers
-import scipy.sparse as sp
 
 from safenav._kernels import plain
 from safenav.errors import UnknownName
+
+if TYPE_CHECKING:
+    import qpsolvers
+
+# qpsolvers and scipy.sparse are imported where used: the default back-end (DAQP, called directly) needs neither,
+# and together they are half a second of a robot process's start (benchmarks.filter_latency --startup).
 
 __all__ = [
     "DirectDAQP",
@@ -99,6 +105,8 @@ class QPData(NamedTuple):
         limits) the rows ``A x = b``: active-set solvers such as quadprog fail on an equality
         written as two opposite inequalities.
         """
+        import qpsolvers
+
         if self.h_lower is None and not np.any(self.lb == self.ub):
             return qpsolvers.Problem(self.P, self.q, self.G, self.h, lb=self.lb, ub=self.ub)
         equal_rows = np.zeros(self.h.size, dtype=bool) if self.h_lower is None else self.h_lower == self.h
@@ -127,7 +135,18 @@ class QPBackend(Protocol):
 
 def available_solvers() -> list[str]:
     """Names accepted by :func:`make_backend` on this machine."""
+    import qpsolvers
+
     return sorted(set(qpsolvers.available_solvers))
+
+
+def solver_installed(name: str) -> bool:
+    """Whether :func:`make_backend` accepts ``name`` (a solver name, or ``"qpsolvers:<name>"``); the solvers it
+    calls directly are found without loading qpsolvers."""
+    if name in _OWN_BACKENDS and importlib.util.find_spec(name) is not None:
+        return True
+    known = available_solvers()
+    return name in known or (name.startswith("qpsolvers:") and name.partition(":")[2] in known)
 
 
 class QpsolversBackend:
@@ -145,6 +164,8 @@ class QpsolversBackend:
         self.options = options
 
     def solve(self, qp: QPData) -> QPOutcome:
+        import qpsolvers
+
         start = time.perf_counter()
         try:
             solution = qpsolvers.solve_problem(qp.problem(), solver=self.name, **self.options)
@@ -199,6 +220,8 @@ class PersistentOSQP:
         indptr = np.arange(0, (capacity + 1) * n_vars + 1, capacity + 1)
         data = np.zeros(indices.size)
         data[indptr[:-1]] = 1.0
+        import scipy.sparse as sp
+
         matrix = sp.csc_matrix((data, indices, indptr), shape=(rows, n_vars))
         solver = self._osqp.OSQP()
         solver.setup(P=sp.eye(n_vars, format="csc"), q=np.zeros(n_vars), A=matrix,
@@ -356,6 +379,8 @@ def make_backend(name: str) -> QPBackend:
     Raises:
         UnknownName: the solver is not installed (the message lists the installed ones).
     """
+    if isinstance(name, str) and name in _OWN_BACKENDS and solver_installed(name):   # no qpsolvers to load
+        return _OWN_BACKENDS[name]()
     known = available_solvers()
     if isinstance(name, str) and name.startswith("qpsolvers:") and name[len("qpsolvers:"):] in known:
         solver = name[len("qpsolvers:"):]
@@ -363,9 +388,11 @@ def make_backend(name: str) -> QPBackend:
     if name not in known:
         raise UnknownName("QP solver", name, known,
                           hint=f"install it with: pip install qpsolvers[{name}]" if isinstance(name, str) else "")
-    if name == "osqp":
-        return PersistentOSQP()
-    if name == "daqp":
-        return DirectDAQP()
+    if name in _OWN_BACKENDS:
+        return _OWN_BACKENDS[name]()
     # The filters verify answers to 1e-6: ask the active-set solvers for tighter feasibility.
     return QpsolversBackend(name, **TIGHT_OPTIONS.get(name, {}))
+
+
+_OWN_BACKENDS: dict[str, Callable[[], QPBackend]] = {"osqp": PersistentOSQP, "daqp": DirectDAQP}
+"""The solvers :func:`make_backend` calls through their own API (no qpsolvers)."""

@@ -12,7 +12,7 @@ from safenav import _checks
 from safenav.errors import UnknownName
 from safenav.filters.defaults import BUDGET_FRACTION, default_margin, default_weights
 from safenav.filters.kernels import KERNELS
-from safenav.filters.qp import available_solvers
+from safenav.filters.qp import available_solvers, solver_installed
 from safenav.robot import RobotSpec
 
 __all__ = [
@@ -58,10 +58,7 @@ def available_mpc_solvers() -> list[str]:
 
 
 def _is_known_solver(name: str) -> bool:
-    qp_names = available_solvers()
-    if name in qp_names or (name.startswith("qpsolvers:") and name.partition(":")[2] in qp_names):
-        return True
-    return name in available_mpc_solvers()
+    return solver_installed(name) or name in available_mpc_solvers()
 
 
 @dataclass(frozen=True)
