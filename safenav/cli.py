@@ -87,7 +87,7 @@ def _filter_names(names: Sequence[str]) -> str:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from safenav.experiments import Cell, cell_records, episode_specs, outcome_table, run_specs
+    from safenav.experiments import Cell, cell_records, episode_specs, outcome_table, reproducible_specs, run_specs
     from safenav.plots import overlay_figure
     from safenav.worlds import TUTORIALS
 
@@ -99,7 +99,8 @@ def _demo(args: argparse.Namespace) -> int:
     cells = [Cell(name, policy, filter_name) for name, policy in cases for filter_name in tutorial_filters]
     cells += [Cell(escape_name, escape_policy, filter_name) for filter_name in escape_filters]
     cases.append((escape_name, escape_policy))
-    specs = episode_specs(cells, seeds, args.duration, record_seeds=[args.seed])
+    # Without the filters' compute budgets, as every sweep: the table is the same on any machine, however loaded.
+    specs = reproducible_specs(episode_specs(cells, seeds, args.duration, record_seeds=[args.seed]))
     _say(f"safenav demo: the three tutorial robots, {_filter_names(tutorial_filters)}; and the deadlock escape in "
          f"{escape_name}, {_filter_names(escape_filters)}; {len(specs)} episodes "
          f"(seeds {seeds[0]}..{seeds[-1]}) on {args.workers or os.cpu_count()} processes")
@@ -137,6 +138,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from safenav.experiments import EpisodeSpec, run_spec
+    from safenav.experiments.runner import reproducible_settings
     from safenav.filters import filter_settings, unescaped
     from safenav.filters.cbf import BODIES as CBF_BODIES
     from safenav.filters.mpc.config import BODIES as MPC_BODIES
@@ -169,6 +171,7 @@ def _run(args: argparse.Namespace) -> int:
                                 f"({', '.join(MPC_BODIES)}); got --filter {args.filter}")
         options["body"] = args.body
         sim_options["truth"] = "footprint"      # the body the filter's guarantee is for
+    options.update(reproducible_settings(filter_name))   # the same seed, the same episode on any machine (_demo)
     spec = EpisodeSpec(name, policy, filter_name, args.seed, args.duration, robot=args.robot, filter_options=options,
                        sim_options=sim_options, record=plot is not None or gif is not None,
                        record_scans=gif is not None, gui=args.gui)
@@ -332,7 +335,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "on the same seeds, with the deadlock escape around each filter unless --no-escape, and a "
                     "go-to-goal through clutter (goal_rosbot) with each filter plain and with the escape. Prints "
                     "a table of collisions, clearance, progress, goals and escapes, and writes one PNG with the "
-                    "trajectories of the first seed side by side.")
+                    "trajectories of the first seed side by side. The filters run without their compute "
+                    "budgets, as in every sweep: the table is the same on any machine.")
     demo.add_argument("--seed", metavar="S", type=argument_type(integer, low=0), default=0,
                       help="first seed; its trajectories are drawn (default: 0)")
     demo.add_argument("--seeds", metavar="N", type=argument_type(integer, low=1), default=5,
@@ -357,7 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "perturbed by the seed), clutter (a random 10 x 10 m arena with 30 obstacles drawn from the\n"
                     "seed) and goal (the same with a goal to reach). --robot defaults to the tutorial's robot\n"
                     "(rosbot, puzzlebot, m2wr) or to rosbot in a random world; --policy defaults to the world's\n"
-                    "first policy (stop_at_wall, obstacle_avoidance, wall_follower, random_walk, go_to_goal).")
+                    "first policy (stop_at_wall, obstacle_avoidance, wall_follower, random_walk, go_to_goal).\n\n"
+                    "The filters run without their compute budgets, as in every sweep: the same seed gives the\n"
+                    "same episode on any machine.")
     run.add_argument("--robot", metavar="R", type=name_type("robot", PRESET_NAMES),
                      help=f"robot preset: {', '.join(PRESET_NAMES)}")
     run.add_argument("--world", metavar="W", type=name_type("world", worlds), default="stop_at_wall",

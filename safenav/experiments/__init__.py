@@ -31,7 +31,7 @@ Figures of outcomes and records are in :mod:`safenav.plots` (experiments import 
 built on it.
 """
 
-from safenav.experiments.runner import EpisodeOutcome, JobRunner, Progress, run_spec, run_specs
+from safenav.experiments.runner import EpisodeOutcome, JobRunner, Progress, reproducible_specs, run_spec, run_specs
 from safenav.experiments.specs import Cell, EpisodeSpec, episode_specs, matrix
 from safenav.experiments.stats import DEADLOCK_LIMIT, cell_record, cell_records, pooled_records, wilson_interval
 from safenav.experiments.tables import (
@@ -62,6 +62,7 @@ __all__ = [
     "matrix",
     "outcome_table",
     "pooled_records",
+    "reproducible_specs",
     "run_spec",
     "run_specs",
     "scenario_for",
