@@ -203,15 +203,16 @@ def test_the_core_wheel_resolves_for_a_robot_computer(tmp_path):
 UNUSED_MODULES = ("scipy.signal", "scipy.sparse", "scipy.stats", "qpsolvers", "osqp", "pybullet", "matplotlib")
 
 LOADED = """
-import json, sys
+import json, math, sys
 from safenav import preset
 from safenav.filters import MPCConfig, make_filter
 from safenav.synthetic import Scene, synthetic_scan, wall
 
 robot = preset("rosbot")
 scan = synthetic_scan(robot, Scene.of(wall(distance=0.5)))
-statuses = [make_filter(name, robot, 0.05, **options).filter((0.5, 0.0), scan, velocity=(0.1, 0.0)).status.value
-            for name, options in (("cbf", {}), ("mpc", {}), ("mpc", {"config": MPCConfig(time_constant=0.1)}))]
+lagging = {"config": MPCConfig(time_constant=0.1)}
+statuses = [make_filter(name, robot, 0.05, budget=math.inf, **options).filter((0.5, 0.0), scan, velocity=(0.1, 0.0))
+            .status.value for name, options in (("cbf", {}), ("mpc", {}), ("mpc", lagging))]
 print(json.dumps({"statuses": statuses, "loaded": sorted(sys.modules)}))
 """
 
