@@ -36,6 +36,7 @@ __all__ = [
     "QpsolversBackend",
     "available_solvers",
     "make_backend",
+    "solver_installed",
 ]
 
 #: Solver options that make answers feasible to well below the filters' verification tolerance.
