@@ -197,9 +197,10 @@ def test_the_core_wheel_resolves_for_a_robot_computer(tmp_path):
     assert "Would install" in resolved.stdout and "casadi" in resolved.stdout and "pybullet" not in resolved.stdout
 
 
-# What a robot's control process loads: importing and running the filters with their default back-end (and the MPC
-# with a lagging base) must not pull in the modules only other back-ends or nothing use: scipy.signal alone took
-# 1.2 s of a 2 s import, qpsolvers with scipy.sparse and scipy.stats 0.5 s more (benchmarks.filter_latency --startup).
+# What a robot's control process loads: importing and running the filters with their default back-end must not
+# pull in the modules only other back-ends, a lagging base's model or nothing use: scipy.signal alone took 1.2 s of a
+# 2 s import, qpsolvers with scipy.sparse and scipy.stats 0.5 s more (benchmarks.filter_latency --startup). And no
+# control call imports anything: a first call that loads a module stalls the loop for as long as the import takes.
 UNUSED_MODULES = ("scipy.signal", "scipy.sparse", "scipy.stats", "qpsolvers", "osqp", "pybullet", "matplotlib")
 
 LOADED = """
@@ -210,22 +211,38 @@ from safenav.synthetic import Scene, synthetic_scan, wall
 
 robot = preset("rosbot")
 scan = synthetic_scan(robot, Scene.of(wall(distance=0.5)))
-lagging = {"config": MPCConfig(time_constant=0.1)}
-statuses = [make_filter(name, robot, 0.05, budget=math.inf, **options).filter((0.5, 0.0), scan, velocity=(0.1, 0.0))
-            .status.value for name, options in (("cbf", {}), ("mpc", {}), ("mpc", lagging))]
-print(json.dumps({"statuses": statuses, "loaded": sorted(sys.modules)}))
+lagging = {"config": MPCConfig(time_constant=0.1), "kernels": "numpy"}   # numpy's plan check runs the lag's model
+filters = {"default": [("cbf", {}), ("mpc", {}), ("mpc", {"kernels": "numpy"})], "lagging": [("mpc", lagging)]}
+built = [make_filter(name, robot, 0.05, budget=math.inf, **options) for name, options in filters[sys.argv[1]]]
+report = {"built": sorted(sys.modules)}
+before = set(sys.modules)
+report["statuses"] = [safety.filter((0.5, 0.0), scan, velocity=(0.1, 0.0)).status.value for safety in built]
+report["by_the_calls"] = sorted(set(sys.modules) - before)
+print(json.dumps(report))
 """
 
 
-def test_the_filters_load_only_the_modules_they_use():
+def _loaded(which: str) -> dict:
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-c", LOADED], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", LOADED, which], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120)
     assert done.returncode == 0, done.stderr
-    report = json.loads(done.stdout.splitlines()[-1])
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def test_the_filters_load_only_the_modules_they_use_and_their_calls_none():
+    report = _loaded("default")
     assert report["statuses"] == ["ok"] * 3
-    assert [name for name in report["loaded"] if name.startswith(UNUSED_MODULES)] == []
+    assert [name for name in report["built"] if name.startswith(UNUSED_MODULES)] == []
+    assert report["by_the_calls"] == []
+
+
+def test_a_lagging_bases_mpc_loads_its_filter_when_built_not_in_a_call():
+    report = _loaded("lagging")
+    assert report["statuses"] == ["ok"]
+    assert "scipy.signal" in report["built"] and report["by_the_calls"] == []
 
 
 def test_another_back_end_still_loads_what_it_needs():

@@ -49,33 +49,6 @@ def test_the_knots_model_is_the_every_period_model_through_the_interpolation(per
         np.testing.assert_allclose(jacobian[..., index], (ahead - behind) / (2 * step), rtol=0.0, atol=1e-7)
 
 
-@pytest.mark.parametrize("time_constant", [0.01, 0.1, 0.5, 1.0])
-def test_a_lagging_bases_velocities_are_scipys_first_order_filter_to_the_bit(time_constant):
-    """``BaseModel.velocities`` runs the lag's recurrence itself (scipy.signal cost a second of import): it must be
-    ``lfilter``'s answer bit for bit, on random commands and on every special value (signed zeros, infinities, NaN,
-    subnormals; a NaN's sign bit aside)."""
-    from scipy.signal import lfilter
-
-    base = BaseModel(0.05, time_constant)
-    rho = base.rho
-    rng = np.random.default_rng(7)
-    special = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 5e-324, -5e-324, 1e308, -1e308, 1.0])
-    cases = [(rng.normal(size=(n, 2)) * rng.choice([1e-9, 1.0, 1e9]), rng.normal(size=2))
-             for n in (0, 1, 2, 20, 51) for _ in range(30)]
-    cases += [(rng.choice(special, size=(12, 2)), rng.choice(special, size=2)) for _ in range(300)]
-    for commands, start in cases:
-        got = base.velocities(commands, start)
-        if commands.shape[0]:
-            want = lfilter([1.0 - rho], [1.0, -rho], commands, axis=0, zi=rho * start.reshape(1, 2))[0]
-        else:
-            want = np.empty((0, 2))
-        assert got.shape == (commands.shape[0] + 1, 2)
-        assert got[0].tobytes() == start.tobytes()
-        nan = np.isnan(want)
-        assert np.array_equal(np.isnan(got[1:]), nan), (commands, start, got[1:], want)   # (a NaN's sign is moot)
-        assert got[1:][~nan].tobytes() == want[~nan].tobytes(), (commands, start, got[1:], want)
-
-
 def test_model_evaluations_share_their_buffers_and_calls_return_copies():
     model = PlanModel(20, BaseModel(0.05, 0.0))
     first, _ = model(np.full((20, 2), 0.5), np.zeros(2))

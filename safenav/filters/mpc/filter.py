@@ -31,6 +31,7 @@ from safenav.filters.mpc.plan import (
     PlanLayout,
     disk_centres,
     distances,
+    lag_filter,
     row_values,
 )
 from safenav.filters.mpc.sqp import DirectSQP, PlanCost, PlanNLP, PlanSolver
@@ -294,6 +295,8 @@ class MPCSafetyFilter(SafetyFilter):
                          budget=cfg.budget, clock=clock)
         dt = self.dt
         self.model = BaseModel(dt, cfg.time_constant)
+        if self.model.rho > 0.0:
+            lag_filter()     # imported now, not in the first control call
         self._step = np.array([robot.a_max, robot.alpha_max]) * dt
         self.speed = max(robot.v_max, -robot.v_min)
         periods = max(2, math.ceil(float(cfg.horizon_time) / dt - 1e-9))

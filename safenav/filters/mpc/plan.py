@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -179,6 +180,15 @@ def _layout(periods: int, max_commands: int, hold: int) -> PlanLayout:
         knots, interpolation, changes, period_changes)))
 
 
+def lag_filter() -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+    """``scipy.signal.lfilter``, imported when first asked: scipy.signal is 1.2 s of a process's start that only a
+    lagging base's model uses. :class:`~safenav.filters.mpc.MPCSafetyFilter` asks for it when it is built with a
+    lag, so that no control call pays the import."""
+    from scipy.signal import lfilter
+
+    return lfilter
+
+
 class BaseModel(NamedTuple):
     """How the base's velocity follows the commands (see the module docstring)."""
 
@@ -225,7 +235,9 @@ class BaseModel(NamedTuple):
         rho = self.rho
         if rho == 0.0:
             return np.vstack((start, self.reached(commands, velocity, hold)))
-        return np.vstack((start, lagged(commands, start[0], rho)))
+        # w_{k+1} = rho w_k + (1 - rho) u_k, a first-order filter of the commands.
+        after = lag_filter()([1.0 - rho], [1.0, -rho], commands, axis=0, zi=rho * start)[0]
+        return np.vstack((start, after))
 
     def rollout(self, commands: np.ndarray, velocity: np.ndarray, hold: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Poses ``(N + 1, 3)`` and velocities ``(N + 1, 2)`` of a plan from the base origin, its commands held in
@@ -252,22 +264,6 @@ class BaseModel(NamedTuple):
         if self.time_constant > 0.0:
             knots = np.vstack((knots, self.coast(poses[-1], velocities[-1])))
         return knots, poses, velocities
-
-
-def lagged(commands: np.ndarray, start: np.ndarray, rho: float) -> np.ndarray:
-    """``(N, 2)``: the velocities ``w_1..w_N`` of ``w_{k+1} = rho w_k + (1 - rho) u_k`` from ``w_0 = start``.
-
-    The recurrence in Python floats, in the order of ``scipy.signal.lfilter([1 - rho], [1, -rho], commands,
-    axis=0, zi=rho * start)``, whose answers it gives to the bit (a horizon is a few dozen knots: a loop
-    costs less than that call, and scipy.signal a second of import)."""
-    gain, pole = 1.0 - rho, -rho        # b = [1 - rho, 0], a = [1, -rho]: lfilter's state z = 0 x - a_1 y
-    v_state, w_state = rho * float(start[0]), rho * float(start[1])
-    out = []
-    for v_in, w_in in commands.tolist():
-        v, w = v_state + gain * v_in, w_state + gain * w_in
-        out.append((v, w))
-        v_state, w_state = v_in * 0.0 - v * pole, w_in * 0.0 - w * pole
-    return np.array(out, dtype=float).reshape(-1, 2)
 
 
 def disk_centres(poses: np.ndarray, offsets: np.ndarray) -> np.ndarray:
