@@ -209,8 +209,16 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 _NO_POINTS = _read_only(np.empty((0, 2)))
 
 
-def _finite_pose(pose: Pose2D) -> bool:
-    return math.isfinite(pose.x) and math.isfinite(pose.y) and math.isfinite(pose.yaw)
+def _odometry(pose: Any) -> tuple[Pose2D | None, Pose2D | None]:
+    """A call's ``pose`` checked (:func:`~safenav.robot.as_pose`) and split: ``(the pose, None)`` when it is finite,
+    ``(None, the pose)`` when it is not (an odometry glitch: the call goes on as without a pose, and says so), and
+    ``(None, None)`` without one."""
+    if pose is None:
+        return None, None
+    odometry = as_pose(pose)
+    if math.isfinite(odometry.x) and math.isfinite(odometry.y) and math.isfinite(odometry.yaw):
+        return odometry, None
+    return None, odometry
 
 
 def _finite(pair: np.ndarray) -> bool:
@@ -639,11 +647,7 @@ class SafetyFilter(abc.ABC):
             nominal = as_command(u_nom, "u_nom")
             scans = self._match(as_scans(scan))
             current = None if velocity is None else as_command(velocity, "velocity")
-            odometry = None if pose is None else as_pose(pose)
-            if odometry is not None and not _finite_pose(odometry):   # a glitch: carried as without the pose
-                glitch, odometry = odometry, None
-            else:
-                glitch = None
+            odometry, glitch = _odometry(pose)   # a glitch: carried as without the pose
             period, clock_note = self._clock(now)
             base_note = self._check_base(current, period if period is not None else self.dt)
             if self._called:   # the last command, held since the previous call, and the velocities measured then
@@ -814,9 +818,7 @@ class SafetyFilter(abc.ABC):
         """
         current = None if velocity is None else as_command(velocity, "velocity")
         now = None if now is None else _checks.number("now", now)
-        odometry = None if pose is None else as_pose(pose)
-        if odometry is not None and not _finite_pose(odometry):
-            odometry = None     # as the call does: carried as without the pose
+        odometry = _odometry(pose)[0]     # as the call does: a glitch is carried as without the pose
         if self.memory is None or not self._called or len(self.memory) == 0:
             return np.empty((0, 2))
         elapsed = self.dt

@@ -106,9 +106,9 @@ from typing import Any
 import numpy as np
 
 from safenav import _checks
-from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, _finite_pose, progress
+from safenav.filters.base import STALL_PROGRESS, FilterResult, Reason, SafetyFilter, _odometry, progress
 from safenav.geometry import Pose2D, unicycle_step, wrap_angle
-from safenav.robot import RobotSpec, as_command, as_pose
+from safenav.robot import RobotSpec, as_command
 from safenav.scan import LaserScan
 
 __all__ = ["Escape", "EscapeConfig"]
@@ -314,10 +314,9 @@ class Escape:
     def filter(self, u_nom: Any, scan: LaserScan | Sequence[LaserScan], **kwargs: Any) -> FilterResult:
         """Filter ``u_nom`` (see :meth:`SafetyFilter.filter`), escaping deadlocks; same arguments."""
         nominal = as_command(u_nom, "u_nom")
-        if kwargs.get("pose") is not None:
-            odometry = as_pose(kwargs["pose"])
-            if _finite_pose(odometry):   # (a glitch: the wrapped filter brakes and says so)
-                self._odometry = odometry
+        odometry = _odometry(kwargs.get("pose"))[0]
+        if odometry is not None:   # (not at a glitch: the wrapped filter brakes and says so)
+            self._odometry = odometry
         pending, self._pending = self._pending, False
         starting = pending and bool(np.all(np.isfinite(nominal)))
         if self._side or starting:

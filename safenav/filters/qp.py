@@ -141,10 +141,16 @@ def available_solvers() -> list[str]:
     return sorted(set(qpsolvers.available_solvers))
 
 
+def _own_backend(name: Any) -> bool:
+    """Whether ``name`` is a solver :func:`make_backend` calls through its own API, and it is installed (found without
+    loading qpsolvers)."""
+    return isinstance(name, str) and name in _OWN_BACKENDS and importlib.util.find_spec(name) is not None
+
+
 def solver_installed(name: str) -> bool:
     """Whether :func:`make_backend` accepts ``name`` (a solver name, or ``"qpsolvers:<name>"``); the solvers it
     calls directly are found without loading qpsolvers."""
-    if name in _OWN_BACKENDS and importlib.util.find_spec(name) is not None:
+    if _own_backend(name):
         return True
     known = available_solvers()
     return name in known or (name.startswith("qpsolvers:") and name.partition(":")[2] in known)
@@ -380,7 +386,7 @@ def make_backend(name: str) -> QPBackend:
     Raises:
         UnknownName: the solver is not installed (the message lists the installed ones).
     """
-    if isinstance(name, str) and name in _OWN_BACKENDS and solver_installed(name):   # no qpsolvers to load
+    if _own_backend(name):   # no qpsolvers to load
         return _OWN_BACKENDS[name]()
     known = available_solvers()
     if isinstance(name, str) and name.startswith("qpsolvers:") and name[len("qpsolvers:"):] in known:
@@ -389,8 +395,6 @@ def make_backend(name: str) -> QPBackend:
     if name not in known:
         raise UnknownName("QP solver", name, known,
                           hint=f"install it with: pip install qpsolvers[{name}]" if isinstance(name, str) else "")
-    if name in _OWN_BACKENDS:
-        return _OWN_BACKENDS[name]()
     # The filters verify answers to 1e-6: ask the active-set solvers for tighter feasibility.
     return QpsolversBackend(name, **TIGHT_OPTIONS.get(name, {}))
 
