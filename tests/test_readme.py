@@ -158,13 +158,19 @@ except ImportError as error:
 """
 
 
-def _core_only_output() -> list[str]:
+def _fresh_process(script: str, *args: str) -> list[str]:
+    """The lines ``script`` prints in a fresh Python process run from the checkout (it must succeed)."""
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-c", CORE_ONLY], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", script, *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120)
     assert done.returncode == 0, done.stderr
     return done.stdout.splitlines()
+
+
+def _core_only_output() -> list[str]:
+    return _fresh_process(CORE_ONLY)
 
 
 def test_the_filters_import_and_run_without_any_extra():
@@ -233,13 +239,7 @@ print(json.dumps(report))
 
 
 def _loaded(which: str) -> dict:
-    import subprocess
-    import sys
-
-    done = subprocess.run([sys.executable, "-c", LOADED, which], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.splitlines()[-1])
+    return json.loads(_fresh_process(LOADED, which)[-1])
 
 
 def test_the_filters_load_only_the_modules_they_use_and_their_calls_none():
